@@ -1,0 +1,10 @@
+//! The highway-arena server: a multi-lane highway world whose vehicles follow the
+//! integrated driver + bicycle model of Hang et al. (paper §III), the drivers that steer
+//! them, the PettingZoo-style env built on the world, and its Zenoh transport.
+//!
+//! The modules follow the data, one concern each:
+//! `road` -> `dynamics` -> `traffic` -> `world` -> `scenario` -> `env` -> `transport`.
+#![warn(missing_docs)]
+
+pub mod dynamics;
+pub mod road;

@@ -8,3 +8,6 @@
 
 pub mod dynamics;
 pub mod road;
+pub mod scenario;
+pub mod traffic;
+pub mod world;

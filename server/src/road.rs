@@ -18,9 +18,17 @@ pub struct LaneId(pub u32);
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Section {
     /// A straight piece of the given length (m).
-    Straight { length: f64 },
+    Straight {
+        /// Length (m).
+        length: f64,
+    },
     /// A circular arc of the given length (m) and signed curvature (1/m, positive bends left).
-    Arc { length: f64, curvature: f64 },
+    Arc {
+        /// Length along the arc (m).
+        length: f64,
+        /// Signed curvature (1/m), positive bends left.
+        curvature: f64,
+    },
 }
 
 impl Section {

@@ -195,58 +195,132 @@ impl VehicleState {
 
     /// Lateral acceleration in the body frame (m/s^2): v_y' + v_x r.
     pub fn lateral_accel(&self, vehicle: &VehicleParams) -> f64 {
-        let dx = body_derivative(&self.to_array(), 0.0, vehicle);
+        let x = self.to_array();
+        let model = Model::new(vehicle, &DriverParams::default());
+        let (front, rear, _) = lateral_forces(&x, &model);
+        let dx = body_derivative(&x, (front, rear), self.steer.cos(), 0.0, &model);
         dx[1] + self.vx * self.yaw_rate
     }
 }
 
-/// Tyre forces of eq. (4)–(5), faded out below the low-speed guard.
+/// sin and cos of the heading and cos of the steering angle: the only transcendental
+/// values f needs. RK4's stages sit within a few milliradians of the step's start, so
+/// `near` rotates the start's values by the small difference (series to 1e-18) instead
+/// of calling libm three times per stage, which was half of the world step's time.
+#[derive(Debug, Clone, Copy)]
+struct Angles {
+    heading: (f64, f64),
+    steer: (f64, f64),
+}
+
+impl Angles {
+    fn of(heading: f64, steer: f64) -> Angles {
+        Angles { heading: heading.sin_cos(), steer: steer.sin_cos() }
+    }
+
+    fn near(&self, heading: f64, base_heading: f64, steer: f64, base_steer: f64) -> Angles {
+        const SMALL: f64 = 0.01;
+        let (dh, ds) = (heading - base_heading, steer - base_steer);
+        if dh.abs() > SMALL || ds.abs() > SMALL {
+            return Angles::of(heading, steer);
+        }
+        Angles { heading: rotate(self.heading, dh), steer: rotate(self.steer, ds) }
+    }
+}
+
+/// (sin, cos) of a + delta from (sin a, cos a), for |delta| <= 0.01.
 #[inline]
-fn lateral_forces(x: &Vector8, vehicle: &VehicleParams) -> (f64, f64) {
+fn rotate((sin, cos): (f64, f64), delta: f64) -> (f64, f64) {
+    let d2 = delta * delta;
+    // Multiplying by folded constants: a division here would cost more than libm saves.
+    let sin_delta = delta * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0))));
+    let cos_delta = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
+    (sin * cos_delta + cos * sin_delta, cos * cos_delta - sin * sin_delta)
+}
+
+/// The constants of f for one vehicle and driver, with their reciprocals taken once:
+/// f is evaluated four times per RK4 step, and divisions were most of its cost.
+#[derive(Debug, Clone, Copy)]
+struct Model {
+    front_axle: f64,
+    rear_axle: f64,
+    front_stiffness: f64,
+    rear_stiffness: f64,
+    inv_mass: f64,
+    inv_inertia: f64,
+    guard: f64,
+    inv_guard: f64,
+    preview_time: f64,
+    /// 1 / (a T_d) and 1 / (a T_d^2) of eq. (1).
+    rate_gain: f64,
+    angle_gain: f64,
+    /// K_0 v_ref G_s / (a T_d^2): eq. (1)'s preview gain times v_x, as K_s = K_0 v_ref / v_x.
+    preview_gain: f64,
+}
+
+impl Model {
+    fn new(vehicle: &VehicleParams, driver: &DriverParams) -> Model {
+        let DriverParams { delay, preview_time, steering_gain, damping, steering_ratio, reference_speed } = *driver;
+        Model {
+            front_axle: vehicle.front_axle,
+            rear_axle: vehicle.rear_axle,
+            front_stiffness: vehicle.front_stiffness,
+            rear_stiffness: vehicle.rear_stiffness,
+            inv_mass: 1.0 / vehicle.mass,
+            inv_inertia: 1.0 / vehicle.yaw_inertia,
+            guard: vehicle.low_speed_guard,
+            inv_guard: 1.0 / vehicle.low_speed_guard,
+            preview_time,
+            rate_gain: 1.0 / (damping * delay),
+            angle_gain: 1.0 / (damping * delay * delay),
+            preview_gain: steering_ratio * reference_speed * steering_gain / (damping * delay * delay),
+        }
+    }
+}
+
+/// Tyre forces of eq. (4)–(5), faded out below the low-speed guard; also 1 / v_x guarded.
+#[inline]
+fn lateral_forces(x: &Vector8, model: &Model) -> (f64, f64, f64) {
     let [vx, vy, r, _, _, _, steer, _] = *x;
-    let guarded = vx.max(vehicle.low_speed_guard);
-    let fade = (vx / vehicle.low_speed_guard).clamp(0.0, 1.0);
-    let front_slip = -steer + (vy + vehicle.front_axle * r) / guarded; // eq. (5)
-    let rear_slip = (vy - vehicle.rear_axle * r) / guarded; // eq. (5)
-    (-vehicle.front_stiffness * front_slip * fade, -vehicle.rear_stiffness * rear_slip * fade) // eq. (4)
+    let inv_speed = 1.0 / vx.max(model.guard);
+    let fade = (vx * model.inv_guard).clamp(0.0, 1.0);
+    let front_slip = -steer + (vy + model.front_axle * r) * inv_speed; // eq. (5)
+    let rear_slip = (vy - model.rear_axle * r) * inv_speed; // eq. (5)
+    (-model.front_stiffness * front_slip * fade, -model.rear_stiffness * rear_slip * fade, inv_speed) // eq. (4)
 }
 
 /// Rows 1–3 of eq. (8) (eq. 2 with eq. 3): the body's speeds. A car does not reverse.
 #[inline]
-fn body_derivative(x: &Vector8, accel: f64, vehicle: &VehicleParams) -> [f64; 3] {
-    let [vx, vy, r, _, _, _, steer, _] = *x;
-    let (front, rear) = lateral_forces(x, vehicle);
-    let cos_steer = steer.cos();
+fn body_derivative(x: &Vector8, forces: (f64, f64), cos_steer: f64, accel: f64, model: &Model) -> [f64; 3] {
+    let [vx, vy, r, ..] = *x;
+    let (front, rear) = forces;
     let mut vx_dot = vy * r + accel;
     if vx <= 0.0 && vx_dot < 0.0 {
         vx_dot = 0.0;
     }
     [
         vx_dot,
-        -vx * r + (front * cos_steer + rear) / vehicle.mass,
-        (vehicle.front_axle * front * cos_steer - vehicle.rear_axle * rear) / vehicle.yaw_inertia,
+        -vx * r + (front * cos_steer + rear) * model.inv_mass,
+        (model.front_axle * front * cos_steer - model.rear_axle * rear) * model.inv_inertia,
     ]
 }
 
 /// Rows 4–6 of eq. (8) (eq. 6), written in the Frenet frame of a lane with `curvature`.
 #[inline]
-fn pose_derivative(x: &Vector8, curvature: f64) -> [f64; 3] {
-    let [vx, vy, r, heading, _, d, _, _] = *x;
-    let (sin, cos) = heading.sin_cos();
-    let s_dot = (vx * cos - vy * sin) / (1.0 - curvature * d);
+fn pose_derivative(x: &Vector8, (sin, cos): (f64, f64), curvature: f64) -> [f64; 3] {
+    let [vx, vy, r, _, _, d, _, _] = *x;
+    let along = vx * cos - vy * sin;
+    let s_dot = if curvature == 0.0 { along } else { along / (1.0 - curvature * d) };
     [r - curvature * s_dot, s_dot, vx * sin + vy * cos]
 }
 
 /// Row 8 of eq. (8), taken from eq. (1) (DESIGN.md: where eq. 1 and 8 disagree, eq. 1).
 #[inline]
-fn driver_derivative(x: &Vector8, preview: f64, vehicle: &VehicleParams, driver: &DriverParams) -> f64 {
+fn driver_derivative(x: &Vector8, preview: f64, inv_speed: f64, model: &Model) -> f64 {
     let [vx, _, _, heading, _, d, steer, steer_rate] = *x;
-    let DriverParams { delay, preview_time, steering_gain, damping, .. } = *driver;
-    let gain = driver.steering_ratio_at(vx.max(vehicle.low_speed_guard)) * steering_gain;
-    let predicted = d + preview_time * vx * heading;
-    // eq. (1)
-    -steer_rate / (damping * delay) - steer / (damping * delay * delay)
-        + gain / (damping * delay * delay) * (preview - predicted)
+    let predicted = d + model.preview_time * vx * heading;
+    // eq. (1), with K_s = K_0 v_ref / v_x folded into preview_gain * inv_speed
+    -steer_rate * model.rate_gain - steer * model.angle_gain + model.preview_gain * inv_speed * (preview - predicted)
 }
 
 /// f(x, u) of eq. (7)–(8) on a lane of the given curvature.
@@ -258,15 +332,24 @@ pub fn derivative(
     vehicle: &VehicleParams,
     driver: &DriverParams,
 ) -> Vector8 {
-    let [vx_dot, vy_dot, r_dot] = body_derivative(x, command.accel, vehicle);
-    let [heading_dot, s_dot, d_dot] = pose_derivative(x, curvature);
-    [vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, x[7], driver_derivative(x, command.preview, vehicle, driver)]
+    derivative_at(x, Angles::of(x[3], x[6]), command, curvature, &Model::new(vehicle, driver))
+}
+
+#[inline]
+fn derivative_at(x: &Vector8, angles: Angles, command: Command, curvature: f64, model: &Model) -> Vector8 {
+    let (front, rear, inv_speed) = lateral_forces(x, model);
+    let [vx_dot, vy_dot, r_dot] = body_derivative(x, (front, rear), angles.steer.1, command.accel, model);
+    let [heading_dot, s_dot, d_dot] = pose_derivative(x, angles.heading, curvature);
+    [vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, x[7], driver_derivative(x, command.preview, inv_speed, model)]
 }
 
 /// The bicycle alone (eq. 2–6) with the steering angle held where it is.
 pub fn fixed_steer_derivative(x: &Vector8, accel: f64, curvature: f64, vehicle: &VehicleParams) -> Vector8 {
-    let [vx_dot, vy_dot, r_dot] = body_derivative(x, accel, vehicle);
-    let [heading_dot, s_dot, d_dot] = pose_derivative(x, curvature);
+    let angles = Angles::of(x[3], x[6]);
+    let model = Model::new(vehicle, &DriverParams::default());
+    let (front, rear, _) = lateral_forces(x, &model);
+    let [vx_dot, vy_dot, r_dot] = body_derivative(x, (front, rear), angles.steer.1, accel, &model);
+    let [heading_dot, s_dot, d_dot] = pose_derivative(x, angles.heading, curvature);
     [vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, 0.0, 0.0]
 }
 
@@ -291,7 +374,13 @@ pub fn step(
     vehicle: &VehicleParams,
     driver: &DriverParams,
 ) -> VehicleState {
-    let x = rk4(&state.to_array(), dt, |x| derivative(x, command, curvature, vehicle, driver));
+    let x0 = state.to_array();
+    let start = Angles::of(x0[3], x0[6]);
+    let model = Model::new(vehicle, driver);
+    let x = rk4(&x0, dt, |x| {
+        let angles = start.near(x[3], x0[3], x[6], x0[6]);
+        derivative_at(x, angles, command, curvature, &model)
+    });
     let mut next = VehicleState::from_array(x);
     next.vx = next.vx.max(0.0);
     next
@@ -324,7 +413,7 @@ pub fn linearise(
     } = *vehicle;
     let mut a = SMatrix::<f64, STATES, STATES>::zeros();
     let mut b = SMatrix::<f64, STATES, INPUTS>::zeros();
-    let (front, _) = lateral_forces(&x, vehicle);
+    let (front, ..) = lateral_forces(&x, &Model::new(vehicle, driver));
     let (sin_steer, cos_steer) = steer.sin_cos();
 
     // Tyre forces' partials over [vx, vy, r, steer].
@@ -485,3 +574,19 @@ pub fn lane_change_response(
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod trig_tests {
+    #[test]
+    fn rotated_angles_match_libm() {
+        for k in -100..=100 {
+            let base = k as f64 * 0.013;
+            for j in -10..=10 {
+                let delta = j as f64 * 1e-3;
+                let (sin, cos) = super::rotate(base.sin_cos(), delta);
+                let exact = (base + delta).sin_cos();
+                assert!((sin - exact.0).abs() < 1e-15 && (cos - exact.1).abs() < 1e-15, "{base} + {delta}");
+            }
+        }
+    }
+}

@@ -154,11 +154,13 @@ impl Road {
 
     /// The lane whose strip contains offset `d`, if any (lanes that have ended excluded).
     pub fn lane_at(&self, s: f64, d: f64) -> Option<LaneId> {
-        let index = (-d / self.lane_width + 0.5).floor();
-        if index < 0.0 || index >= self.lane_count() as f64 {
+        // Truncation is floor here because negatives are refused first; f64::floor is a
+        // libm call on baseline x86-64, and this runs for every vehicle every step.
+        let position = -d / self.lane_width + 0.5;
+        if !(0.0..self.lane_count() as f64).contains(&position) {
             return None;
         }
-        let lane = LaneId(index as u32);
+        let lane = LaneId(position as u32);
         (s <= self.lane_end(lane)).then_some(lane)
     }
 

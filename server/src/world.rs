@@ -411,7 +411,15 @@ impl World {
                     break;
                 }
                 let both_crashed = a.status == Status::Crashed && b.status == Status::Crashed;
-                if b.on_road() && !both_crashed && (b.state.d - a.state.d).abs() <= reach && self.boxes_overlap(a, b) {
+                // A box reaches sideways at most half its width plus half its length times
+                // |sin(heading)| <= |heading|: most neighbours in the next lane fail this.
+                let lateral_reach = self.vehicle_params.width
+                    + self.vehicle_params.length * (a.state.heading.abs() + b.state.heading.abs()) / 2.0;
+                if b.on_road()
+                    && !both_crashed
+                    && (b.state.d - a.state.d).abs() <= lateral_reach
+                    && self.boxes_overlap(a, b)
+                {
                     found.push(Collision { rear: VehicleId(i), front: VehicleId(j) });
                 }
             }

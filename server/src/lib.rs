@@ -3,11 +3,15 @@
 //! them, the PettingZoo-style env built on the world, and its Zenoh transport.
 //!
 //! The modules follow the data, one concern each:
-//! `road` -> `dynamics` -> `traffic` -> `world` -> `scenario` -> `env` -> `transport`.
+//! `road` -> `dynamics` -> `traffic` / `av` -> `world` -> `scenario` -> `env` -> `transport`.
 #![warn(missing_docs)]
 
+pub mod av;
 pub mod dynamics;
+pub mod env;
+pub mod paper;
 pub mod road;
 pub mod scenario;
 pub mod traffic;
+pub mod transport;
 pub mod world;

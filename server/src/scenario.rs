@@ -8,6 +8,7 @@ use std::path::Path;
 use rand::RngExt;
 use serde::Deserialize;
 
+use crate::av::{AvParams, Game, GtDriver, Role};
 use crate::dynamics::Style;
 use crate::road::{LaneId, Pose, Road, Section};
 use crate::world::{AgentCommand, Driver, Vehicle, World, WorldParams};
@@ -207,6 +208,15 @@ enum DriverFile {
         #[serde(default = "default_style")]
         style: Style,
     },
+    Gt {
+        #[serde(default = "default_style")]
+        style: Style,
+        game: Game,
+        #[serde(default)]
+        role: Role,
+        #[serde(default)]
+        follower_tolerance: f64,
+    },
 }
 
 fn default_style() -> Style {
@@ -268,6 +278,15 @@ pub enum DriverSpec {
     Agent(ActionKind),
     /// IDM + MOBIL.
     Idm,
+    /// The game-theoretic AV of `av`.
+    Gt {
+        /// Nash or Stackelberg.
+        game: Game,
+        /// Leader (the paper's EC) or follower (its AC).
+        role: Role,
+        /// Relative tolerance on the follower set of eq. (17b); 0 is the paper's.
+        follower_tolerance: f64,
+    },
 }
 
 /// Random IDM traffic placed like highway-env's `Vehicle.create_random`.
@@ -340,6 +359,11 @@ impl Scenario {
             let driver = match spec.driver {
                 DriverSpec::Agent(_) => Driver::Agent(AgentCommand::Track),
                 DriverSpec::Idm => Driver::Idm,
+                DriverSpec::Gt { game, role, follower_tolerance } => {
+                    let mut params = AvParams::default();
+                    params.decision.game.follower_tolerance = follower_tolerance;
+                    Driver::Gt(Box::new(GtDriver::new(game, role, params)))
+                }
             };
             let mut vehicle = Vehicle::new(&spec.name, &self.road, spec.lane, spec.s, spec.speed, spec.style, driver);
             vehicle.state.d = spec.d;
@@ -554,6 +578,15 @@ impl VehicleFile {
         let (style, driver) = match self.driver {
             DriverFile::Agent { style, action } => (style, DriverSpec::Agent(action)),
             DriverFile::Idm { style } => (style, DriverSpec::Idm),
+            DriverFile::Gt { style, game, role, follower_tolerance } => {
+                if !(follower_tolerance.is_finite() && follower_tolerance >= 0.0) {
+                    return Err(invalid(
+                        "driver.follower_tolerance",
+                        format!("must be a number >= 0, not {follower_tolerance}"),
+                    ));
+                }
+                (style, DriverSpec::Gt { game, role, follower_tolerance })
+            }
         };
         Ok(VehicleSpec { name: self.name.clone(), lane, s, d, speed: self.speed, target_speed, style, driver })
     }

@@ -46,6 +46,8 @@ pub enum Driver {
     Agent(AgentCommand),
     /// IDM + MOBIL background traffic.
     Idm,
+    /// The paper's game-theoretic AV (`av`): its game, role, constants and memory.
+    Gt(Box<crate::av::GtDriver>),
 }
 
 /// What a learner last asked its vehicle to do.
@@ -305,6 +307,7 @@ impl World {
                     self.consider_lane_change(id);
                     self.idm_accel(id)
                 }
+                (Status::Driving, Driver::Gt(_)) => crate::av::drive(self, id),
             };
             self.vehicles[index].command.accel = accel;
         }
@@ -375,6 +378,7 @@ impl World {
             }
             vehicle.command.preview = match vehicle.driver {
                 Driver::Agent(AgentCommand::Direct(command)) => command.preview,
+                Driver::Gt(_) => vehicle.command.preview,
                 _ => vehicle.path.preview(time, vehicle.driver_params.preview_time),
             };
             let curvature = self.road.curvature(vehicle.state.s);

@@ -1,1 +1,404 @@
-//! Rust client of highway-arena.
+//! Rust client of highway-arena: find servers by Zenoh liveliness, create envs on one,
+//! and reset, step (one env or a batch in one round trip), render, read state and close
+//! them, with timeouts and safe retries.
+//!
+//! `Client` is async (it needs a tokio multi-thread runtime, as Zenoh does);
+//! `blocking::Client` wraps it with its own runtime for callers that are not async, such
+//! as the Python extension and the `arena` CLI.
+//!
+//! ```no_run
+//! # async fn demo() -> Result<(), arena_client::ClientError> {
+//! use arena_client::{Client, ScenarioSource, CreateOptions};
+//! use arena_protocol::session::ConnectionFlags;
+//! let client = Client::connect(&ConnectionFlags::default()).await?;
+//! let server = client.pick_server().await?;
+//! let mut env = client.create_env(&server, ScenarioSource::Named("merge".into()), CreateOptions::default()).await?;
+//! env.reset(Some(0), vec![]).await?;
+//! let reply = env.step(vec![]).await?;
+//! println!("{:?}", reply.rewards);
+//! env.close().await?;
+//! client.close().await?;
+//! # Ok(()) }
+//! ```
+#![warn(missing_docs)]
+
+pub mod blocking;
+
+use std::fmt;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+pub use arena_protocol::{
+    Action, BatchItem, BatchStep, CreateOptions, EnvId, EnvSpecs, ErrorCode, ErrorReply, Frame, Observation,
+    OptionValue, RenderMode, ResetReply, ScenarioSource, ServerInfo, StepReply,
+};
+use arena_protocol::{
+    ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys,
+    session::{ConnectionFlags, Role},
+};
+
+/// Occurs when a call to a server fails.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ClientError {
+    /// Occurs when the Zenoh session cannot be opened or a query cannot be sent.
+    Zenoh(String),
+    /// Occurs when no reply came within the timeout (after every retry).
+    Timeout {
+        /// What was asked.
+        what: String,
+        /// How long the client waited in all.
+        waited: Duration,
+    },
+    /// Occurs when no server answers under the prefix.
+    NoServer {
+        /// The prefix searched.
+        prefix: String,
+    },
+    /// Occurs when the server refused the request; the reply says why.
+    Server(ErrorReply),
+    /// Occurs when a reply cannot be decoded (a server of another version, say).
+    Protocol(String),
+}
+
+impl fmt::Display for ClientError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ClientError::Zenoh(message) => write!(f, "zenoh: {message}"),
+            ClientError::Timeout { what, waited } => write!(
+                f,
+                "no reply to {what} within {:.1} s; is an arena-server running and reachable? (start one with `arena-server`)",
+                waited.as_secs_f64()
+            ),
+            ClientError::NoServer { prefix } => write!(
+                f,
+                "no arena-server found under prefix '{prefix}'; start one with `arena-server` or pass --connect with its endpoint"
+            ),
+            ClientError::Server(reply) => write!(f, "{reply}"),
+            ClientError::Protocol(message) => write!(f, "protocol: {message}"),
+        }
+    }
+}
+
+impl std::error::Error for ClientError {}
+
+/// Result of every client call.
+pub type Result<T> = std::result::Result<T, ClientError>;
+
+fn zenoh_error(e: impl fmt::Display) -> ClientError {
+    ClientError::Zenoh(e.to_string())
+}
+
+struct Inner {
+    session: zenoh::Session,
+    prefix: String,
+    id: ClientId,
+    timeout: Duration,
+    retries: u32,
+    /// Taken by `close`; servers close this client's envs when it disappears.
+    token: std::sync::Mutex<Option<zenoh::liveliness::LivelinessToken>>,
+}
+
+/// A connection to the Zenoh network where arena-servers live. Cheap to clone.
+#[derive(Clone)]
+pub struct Client {
+    inner: Arc<Inner>,
+}
+
+impl fmt::Debug for Client {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Client").field("id", &self.inner.id).field("prefix", &self.inner.prefix).finish()
+    }
+}
+
+impl Client {
+    /// Opens a Zenoh session as `flags` say (by default a peer connecting to
+    /// tcp/127.0.0.1:7447 with multicast scouting off) and announces this client.
+    pub async fn connect(flags: &ConnectionFlags) -> Result<Client> {
+        let config = flags.zenoh_config(Role::Client).map_err(ClientError::Zenoh)?;
+        let session = zenoh::open(config).await.map_err(zenoh_error)?;
+        Client::with_session(session, &flags.prefix, flags.timeout(), flags.retries).await
+    }
+
+    /// Uses an open session. `timeout` bounds each attempt; a sequenced call is retried
+    /// `retries` times with the same sequence number, so it never steps twice.
+    pub async fn with_session(
+        session: zenoh::Session,
+        prefix: &str,
+        timeout: Duration,
+        retries: u32,
+    ) -> Result<Client> {
+        let id = ClientId(rand::random::<u128>());
+        let token_key = keys::client_liveliness(prefix, &id.to_string()).map_err(zenoh_error)?;
+        let token = session.liveliness().declare_token(token_key).await.map_err(zenoh_error)?;
+        let token = std::sync::Mutex::new(Some(token));
+        let inner = Inner { session, prefix: prefix.to_string(), id, timeout, retries, token };
+        Ok(Client { inner: Arc::new(inner) })
+    }
+
+    /// This client's id (its envs are reachable only with it).
+    pub fn id(&self) -> ClientId {
+        self.inner.id
+    }
+
+    /// Servers that are alive now, by id.
+    pub async fn servers(&self) -> Result<Vec<String>> {
+        let key = keys::servers_liveliness_wildcard(&self.inner.prefix).map_err(zenoh_error)?;
+        let replies =
+            self.inner.session.liveliness().get(key).timeout(self.inner.timeout).await.map_err(zenoh_error)?;
+        let mut servers = Vec::new();
+        while let Ok(reply) = replies.recv_async().await {
+            if let Ok(sample) = reply.result()
+                && let Some(id) = keys::server_id_from_liveliness(&self.inner.prefix, sample.key_expr().as_str())
+            {
+                servers.push(id);
+            }
+        }
+        servers.sort();
+        servers.dedup();
+        Ok(servers)
+    }
+
+    /// The first server found, waiting up to the timeout for one to appear.
+    pub async fn pick_server(&self) -> Result<String> {
+        let deadline = Instant::now() + self.inner.timeout;
+        loop {
+            if let Some(server) = self.servers().await?.into_iter().next() {
+                return Ok(server);
+            }
+            if Instant::now() >= deadline {
+                return Err(ClientError::NoServer { prefix: self.inner.prefix.clone() });
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    }
+
+    /// What a server offers.
+    pub async fn server_info(&self, server: &str) -> Result<ServerInfo> {
+        match self.call(server, RequestBody::ServerInfo, true).await? {
+            ReplyBody::ServerInfo(info) => Ok(info),
+            other => Err(unexpected("ServerInfo", &other)),
+        }
+    }
+
+    /// Creates an env on `server`. Not retried: a lost reply would leave an env behind,
+    /// which the server reclaims when it idles out.
+    pub async fn create_env(
+        &self,
+        server: &str,
+        scenario: ScenarioSource,
+        options: CreateOptions,
+    ) -> Result<RemoteEnv> {
+        match self.call(server, RequestBody::CreateEnv { scenario, options }, false).await? {
+            ReplyBody::Created { env, specs } => Ok(RemoteEnv {
+                client: self.clone(),
+                server: server.to_string(),
+                id: env,
+                seq: 0,
+                specs,
+                closed: false,
+            }),
+            other => Err(unexpected("Created", &other)),
+        }
+    }
+
+    /// Steps many envs of this client on one server in one round trip. Actions are
+    /// given per env, in the order of `envs`; each env's result is its own.
+    pub async fn step_batch(
+        &self,
+        envs: &mut [&mut RemoteEnv],
+        actions: Vec<Vec<(String, Action)>>,
+    ) -> Result<Vec<Result<StepReply>>> {
+        let Some(server) = envs.first().map(|e| e.server.clone()) else { return Ok(Vec::new()) };
+        if envs.iter().any(|e| e.server != server) {
+            return Err(ClientError::Protocol("a batch must hold envs of one server".into()));
+        }
+        if actions.len() != envs.len() {
+            return Err(ClientError::Protocol(format!("{} envs but {} action sets", envs.len(), actions.len())));
+        }
+        let steps = envs
+            .iter_mut()
+            .zip(actions)
+            .map(|(env, actions)| {
+                env.seq += 1;
+                BatchStep { env: env.id, seq: env.seq, actions }
+            })
+            .collect();
+        match self.call(&server, RequestBody::StepBatch { steps }, true).await? {
+            ReplyBody::StepBatch(items) => Ok(items
+                .into_iter()
+                .map(|item| match item {
+                    BatchItem::Ok(reply) => Ok(reply),
+                    BatchItem::Err(err) => Err(ClientError::Server(err)),
+                })
+                .collect()),
+            other => Err(unexpected("StepBatch", &other)),
+        }
+    }
+
+    /// Sends `body` to `server` and waits for its reply; with `retry`, resends the same
+    /// bytes after each timeout.
+    async fn call(&self, server: &str, body: RequestBody, retry: bool) -> Result<ReplyBody> {
+        let what = request_name(&body);
+        let request = Request { version: PROTOCOL_VERSION, client: self.inner.id, body };
+        let bytes = encode(&request);
+        let key = keys::server_rpc(&self.inner.prefix, server).map_err(zenoh_error)?;
+        let attempts = if retry { self.inner.retries + 1 } else { 1 };
+        let started = Instant::now();
+        for _ in 0..attempts {
+            if let Some(bytes) = self.get_once(&key, bytes.clone()).await? {
+                let reply: Reply = decode(&bytes)
+                    .map_err(|e| ClientError::Protocol(format!("cannot decode the reply to {what}: {e}")))?;
+                return match reply.body {
+                    ReplyBody::Error(err) => Err(ClientError::Server(err)),
+                    body => Ok(body),
+                };
+            }
+        }
+        Err(ClientError::Timeout { what: what.to_string(), waited: started.elapsed() })
+    }
+
+    /// One Zenoh get; `None` when nothing answered in time.
+    async fn get_once(&self, key: &str, payload: Vec<u8>) -> Result<Option<Vec<u8>>> {
+        let replies =
+            self.inner.session.get(key).payload(payload).timeout(self.inner.timeout).await.map_err(zenoh_error)?;
+        match replies.recv_async().await {
+            Ok(reply) => match reply.result() {
+                Ok(sample) => Ok(Some(sample.payload().to_bytes().into_owned())),
+                Err(err) => Err(ClientError::Zenoh(format!(
+                    "error reply: {}",
+                    String::from_utf8_lossy(&err.payload().to_bytes())
+                ))),
+            },
+            Err(_) => Ok(None),
+        }
+    }
+
+    /// A raw Zenoh get on the server's echo key: sends `request_bytes` and asks for a
+    /// reply of `reply_bytes`. `arena bench` compares this with a step round trip.
+    pub async fn echo(&self, server: &str, request_bytes: usize, reply_bytes: u32) -> Result<Duration> {
+        let key = keys::server_echo(&self.inner.prefix, server).map_err(zenoh_error)?;
+        let mut payload = vec![0u8; request_bytes.max(4)];
+        payload[..4].copy_from_slice(&reply_bytes.to_le_bytes());
+        let started = Instant::now();
+        match self.get_once(&key, payload).await? {
+            Some(_) => Ok(started.elapsed()),
+            None => Err(ClientError::Timeout { what: "echo".into(), waited: started.elapsed() }),
+        }
+    }
+
+    /// Undeclares this client and closes its session, for every handle sharing it;
+    /// servers then close its envs. Closing twice is harmless.
+    pub async fn close(&self) -> Result<()> {
+        let token = self.inner.token.lock().map_or(None, |mut token| token.take());
+        if let Some(token) = token {
+            token.undeclare().await.map_err(zenoh_error)?;
+        }
+        if self.inner.session.is_closed() {
+            return Ok(());
+        }
+        self.inner.session.close().await.map_err(zenoh_error)
+    }
+}
+
+fn request_name(body: &RequestBody) -> &'static str {
+    match body {
+        RequestBody::ServerInfo => "server_info",
+        RequestBody::CreateEnv { .. } => "create_env",
+        RequestBody::Reset { .. } => "reset",
+        RequestBody::Step { .. } => "step",
+        RequestBody::StepBatch { .. } => "step_batch",
+        RequestBody::Render { .. } => "render",
+        RequestBody::State { .. } => "state",
+        RequestBody::Specs { .. } => "specs",
+        RequestBody::Close { .. } => "close",
+    }
+}
+
+fn unexpected(wanted: &str, got: &ReplyBody) -> ClientError {
+    ClientError::Protocol(format!("expected a {wanted} reply, got {got:?}"))
+}
+
+/// An env living on a server, created by this client.
+#[derive(Debug)]
+pub struct RemoteEnv {
+    client: Client,
+    server: String,
+    id: EnvId,
+    seq: u64,
+    specs: EnvSpecs,
+    closed: bool,
+}
+
+impl RemoteEnv {
+    /// Its id on the server.
+    pub fn id(&self) -> EnvId {
+        self.id
+    }
+
+    /// The server it lives on.
+    pub fn server(&self) -> &str {
+        &self.server
+    }
+
+    /// Agents, spaces and timing, as the server described them at creation.
+    pub fn specs(&self) -> &EnvSpecs {
+        &self.specs
+    }
+
+    /// Starts an episode.
+    pub async fn reset(&mut self, seed: Option<u64>, options: Vec<(String, OptionValue)>) -> Result<ResetReply> {
+        self.seq += 1;
+        let body = RequestBody::Reset { env: self.id, seq: self.seq, seed, options };
+        match self.client.call(&self.server, body, true).await? {
+            ReplyBody::Reset(reply) => Ok(reply),
+            other => Err(unexpected("Reset", &other)),
+        }
+    }
+
+    /// Steps with the given actions (agents left out take the default action).
+    pub async fn step(&mut self, actions: Vec<(String, Action)>) -> Result<StepReply> {
+        self.seq += 1;
+        self.step_with_seq(self.seq, actions).await
+    }
+
+    /// Steps with an explicit sequence number: repeating the last one returns the same
+    /// reply without stepping again (what a retry does).
+    pub async fn step_with_seq(&mut self, seq: u64, actions: Vec<(String, Action)>) -> Result<StepReply> {
+        let body = RequestBody::Step { env: self.id, seq, actions };
+        match self.client.call(&self.server, body, true).await? {
+            ReplyBody::Step(reply) => Ok(reply),
+            other => Err(unexpected("Step", &other)),
+        }
+    }
+
+    /// A frame drawn by the server.
+    pub async fn render(&self, mode: RenderMode) -> Result<Frame> {
+        match self.client.call(&self.server, RequestBody::Render { env: self.id, mode }, true).await? {
+            ReplyBody::Render(frame) => Ok(frame),
+            other => Err(unexpected("Render", &other)),
+        }
+    }
+
+    /// The global state.
+    pub async fn state(&self) -> Result<Observation> {
+        match self.client.call(&self.server, RequestBody::State { env: self.id }, true).await? {
+            ReplyBody::State(state) => Ok(state),
+            other => Err(unexpected("State", &other)),
+        }
+    }
+
+    /// Closes the env on the server. Closing twice is harmless here.
+    pub async fn close(&mut self) -> Result<()> {
+        if self.closed {
+            return Ok(());
+        }
+        match self.client.call(&self.server, RequestBody::Close { env: self.id }, false).await {
+            Ok(ReplyBody::Closed) | Err(ClientError::Server(ErrorReply { code: ErrorCode::EnvClosed, .. })) => {
+                self.closed = true;
+                Ok(())
+            }
+            Ok(other) => Err(unexpected("Closed", &other)),
+            Err(e) => Err(e),
+        }
+    }
+}

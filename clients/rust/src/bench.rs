@@ -1,0 +1,175 @@
+//! `arena bench`: what the protocol and the server add to a bare Zenoh round trip, and
+//! how many env steps a batch gets through.
+//!
+//! 1. Round trips on merge.toml (its adjacent car driven by IDM, so a world step costs
+//!    microseconds): a step, and a raw Zenoh get on the server's echo key with the same
+//!    request and reply sizes, interleaved so both see the same conditions.
+//! 2. Batched throughput on highway.toml for 1, 16 and 64 envs: env-steps per second
+//!    and simulated seconds per wall second.
+
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use arena_client::blocking::{Client, Env};
+use arena_client::{Action, CreateOptions, ScenarioSource};
+use arena_protocol::session::ConnectionFlags;
+use arena_protocol::{ClientId, EnvId, META_IDLE, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, encode};
+use serde::Serialize;
+
+/// Arguments of `arena bench`.
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    connection: ConnectionFlags,
+    /// Round trips of each kind to time.
+    #[arg(long, default_value_t = 2000)]
+    round_trips: usize,
+    /// Seconds of batched stepping per batch size.
+    #[arg(long, default_value_t = 5.0)]
+    batch_seconds: f64,
+    /// Batch sizes to measure.
+    #[arg(long, value_delimiter = ',', default_value = "1,16,64")]
+    batches: Vec<usize>,
+    /// Print the figures as one JSON object instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Serialize)]
+struct BatchFigures {
+    envs: usize,
+    env_steps_per_s: f64,
+    sim_seconds_per_s: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct Figures {
+    server: String,
+    step_request_bytes: usize,
+    step_reply_bytes: usize,
+    raw_get_p50_us: f64,
+    raw_get_p99_us: f64,
+    step_p50_us: f64,
+    step_p99_us: f64,
+    ratio_p50: f64,
+    batch: Vec<BatchFigures>,
+}
+
+fn percentile(sorted: &[Duration], p: f64) -> f64 {
+    let index = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted.get(index).map_or(f64::NAN, |d| d.as_secs_f64() * 1e6)
+}
+
+fn progress(json: bool, message: &str) {
+    if !json {
+        eprintln!("{message}");
+    }
+}
+
+/// Runs `arena bench`.
+pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+    if args.round_trips == 0 || !(args.batch_seconds > 0.0) {
+        anyhow::bail!("--round-trips must be at least 1 and --batch-seconds positive");
+    }
+    let client = Client::connect(&args.connection).context("cannot connect")?;
+    let server = client.pick_server()?;
+    progress(
+        args.json,
+        &format!("server {server}: timing {} step and raw round trips on merge.toml", args.round_trips),
+    );
+
+    let mut env = client.create_env(&server, ScenarioSource::Named("merge".into()), CreateOptions::default())?;
+    env.reset(Some(0), vec![])?;
+    let actions = vec![("ec".to_string(), Action::Meta(META_IDLE))];
+    let sample = env.step(actions.clone())?;
+    let request_bytes = encode(&Request {
+        version: PROTOCOL_VERSION,
+        client: ClientId(u128::MAX),
+        body: RequestBody::Step { env: EnvId(u128::MAX), seq: u64::MAX / 2, actions: actions.clone() },
+    })
+    .len();
+    let reply_bytes = encode(&Reply { version: PROTOCOL_VERSION, body: ReplyBody::Step(sample) }).len();
+
+    let (mut steps, mut raws) = (Vec::with_capacity(args.round_trips), Vec::with_capacity(args.round_trips));
+    for k in 0..args.round_trips {
+        let clock = Instant::now();
+        let reply = env.step(actions.clone())?;
+        steps.push(clock.elapsed());
+        if reply.agents.is_empty() {
+            env.reset(Some(k as u64), vec![])?;
+        }
+        raws.push(client.block_on(client.inner().echo(&server, request_bytes, reply_bytes as u32))?);
+        if !args.json && (k + 1) % 500 == 0 {
+            eprintln!("  {}/{}", k + 1, args.round_trips);
+        }
+    }
+    env.close()?;
+    steps.sort();
+    raws.sort();
+
+    let mut batch = Vec::new();
+    for &size in &args.batches {
+        progress(args.json, &format!("batch of {size} highway.toml envs for {} s", args.batch_seconds));
+        batch.push(measure_batch(&client, &server, size, args.batch_seconds)?);
+    }
+
+    let figures = Figures {
+        server,
+        step_request_bytes: request_bytes,
+        step_reply_bytes: reply_bytes,
+        raw_get_p50_us: percentile(&raws, 0.5),
+        raw_get_p99_us: percentile(&raws, 0.99),
+        step_p50_us: percentile(&steps, 0.5),
+        step_p99_us: percentile(&steps, 0.99),
+        ratio_p50: percentile(&steps, 0.5) / percentile(&raws, 0.5),
+        batch,
+    };
+    client.close()?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&figures)?);
+    } else {
+        println!("step request {} B, step reply {} B", figures.step_request_bytes, figures.step_reply_bytes);
+        println!("raw Zenoh get   p50 {:8.1} us   p99 {:8.1} us", figures.raw_get_p50_us, figures.raw_get_p99_us);
+        println!("step round trip p50 {:8.1} us   p99 {:8.1} us", figures.step_p50_us, figures.step_p99_us);
+        println!("ratio (p50)     {:.3}  (target <= 1.25)", figures.ratio_p50);
+        for b in &figures.batch {
+            println!(
+                "batch {:3} envs: {:9.1} env-steps/s, {:9.1} simulated s per wall s",
+                b.envs, b.env_steps_per_s, b.sim_seconds_per_s
+            );
+        }
+    }
+    Ok(())
+}
+
+fn measure_batch(client: &Client, server: &str, size: usize, seconds: f64) -> anyhow::Result<BatchFigures> {
+    let mut envs: Vec<Env> = Vec::with_capacity(size);
+    for seed in 0..size {
+        let mut env = client.create_env(server, ScenarioSource::Named("highway".into()), CreateOptions::default())?;
+        env.reset(Some(seed as u64), vec![])?;
+        envs.push(env);
+    }
+    let dt = envs[0].specs().dt;
+    let agent = envs[0].specs().possible_agents.first().cloned().unwrap_or_default();
+    let (mut stepped, mut rounds) = (0usize, 0u64);
+    let clock = Instant::now();
+    while clock.elapsed().as_secs_f64() < seconds {
+        let actions = (0..size).map(|_| vec![(agent.clone(), Action::Meta(META_IDLE))]).collect();
+        let mut handles: Vec<&mut Env> = envs.iter_mut().collect();
+        let results = client.step_batch(&mut handles, actions)?;
+        rounds += 1;
+        for (k, result) in results.into_iter().enumerate() {
+            let reply = result?;
+            stepped += 1;
+            if reply.agents.is_empty() {
+                envs[k].reset(Some(rounds * size as u64 + k as u64), vec![])?;
+            }
+        }
+    }
+    let elapsed = clock.elapsed().as_secs_f64();
+    for env in &mut envs {
+        env.close()?;
+    }
+    let rate = stepped as f64 / elapsed;
+    Ok(BatchFigures { envs: size, env_steps_per_s: rate, sim_seconds_per_s: rate * dt })
+}

@@ -1,0 +1,116 @@
+//! A blocking face on `Client` for callers without an async runtime (the Python
+//! extension, the CLI). It owns a small tokio multi-thread runtime, as Zenoh requires.
+
+use std::sync::Arc;
+
+use arena_protocol::session::ConnectionFlags;
+
+use crate::{
+    Action, ClientError, CreateOptions, EnvSpecs, Frame, Observation, OptionValue, RenderMode, ResetReply, Result,
+    ScenarioSource, ServerInfo, StepReply,
+};
+
+/// A blocking client. Cheap to clone.
+#[derive(Clone, Debug)]
+pub struct Client {
+    runtime: Arc<tokio::runtime::Runtime>,
+    inner: crate::Client,
+}
+
+impl Client {
+    /// Connects as `flags` say (see `crate::Client::connect`).
+    pub fn connect(flags: &ConnectionFlags) -> Result<Client> {
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .map_err(|e| ClientError::Zenoh(format!("cannot start a tokio runtime: {e}")))?;
+        let inner = runtime.block_on(crate::Client::connect(flags))?;
+        Ok(Client { runtime: Arc::new(runtime), inner })
+    }
+
+    /// The async client underneath.
+    pub fn inner(&self) -> &crate::Client {
+        &self.inner
+    }
+
+    /// Runs a future of this client's on its runtime.
+    pub fn block_on<F: std::future::Future>(&self, future: F) -> F::Output {
+        self.runtime.block_on(future)
+    }
+
+    /// See `crate::Client::servers`.
+    pub fn servers(&self) -> Result<Vec<String>> {
+        self.block_on(self.inner.servers())
+    }
+
+    /// See `crate::Client::pick_server`.
+    pub fn pick_server(&self) -> Result<String> {
+        self.block_on(self.inner.pick_server())
+    }
+
+    /// See `crate::Client::server_info`.
+    pub fn server_info(&self, server: &str) -> Result<ServerInfo> {
+        self.block_on(self.inner.server_info(server))
+    }
+
+    /// See `crate::Client::create_env`.
+    pub fn create_env(&self, server: &str, scenario: ScenarioSource, options: CreateOptions) -> Result<Env> {
+        let env = self.block_on(self.inner.create_env(server, scenario, options))?;
+        Ok(Env { client: self.clone(), env })
+    }
+
+    /// See `crate::Client::step_batch`.
+    pub fn step_batch(
+        &self,
+        envs: &mut [&mut Env],
+        actions: Vec<Vec<(String, Action)>>,
+    ) -> Result<Vec<Result<StepReply>>> {
+        let mut remotes: Vec<&mut crate::RemoteEnv> = envs.iter_mut().map(|e| &mut e.env).collect();
+        self.block_on(self.inner.step_batch(&mut remotes, actions))
+    }
+
+    /// See `crate::Client::close`.
+    pub fn close(&self) -> Result<()> {
+        self.runtime.block_on(self.inner.close())
+    }
+}
+
+/// A blocking handle on a remote env.
+#[derive(Debug)]
+pub struct Env {
+    client: Client,
+    env: crate::RemoteEnv,
+}
+
+impl Env {
+    /// See `crate::RemoteEnv::specs`.
+    pub fn specs(&self) -> &EnvSpecs {
+        self.env.specs()
+    }
+
+    /// See `crate::RemoteEnv::reset`.
+    pub fn reset(&mut self, seed: Option<u64>, options: Vec<(String, OptionValue)>) -> Result<ResetReply> {
+        self.client.runtime.block_on(self.env.reset(seed, options))
+    }
+
+    /// See `crate::RemoteEnv::step`.
+    pub fn step(&mut self, actions: Vec<(String, Action)>) -> Result<StepReply> {
+        self.client.runtime.block_on(self.env.step(actions))
+    }
+
+    /// See `crate::RemoteEnv::render`.
+    pub fn render(&self, mode: RenderMode) -> Result<Frame> {
+        self.client.runtime.block_on(self.env.render(mode))
+    }
+
+    /// See `crate::RemoteEnv::state`.
+    pub fn state(&self) -> Result<Observation> {
+        self.client.runtime.block_on(self.env.state())
+    }
+
+    /// See `crate::RemoteEnv::close`.
+    pub fn close(&mut self) -> Result<()> {
+        self.client.runtime.block_on(self.env.close())
+    }
+}

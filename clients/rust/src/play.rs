@@ -1,0 +1,106 @@
+//! `arena play`: steps an env on a server with a built-in policy and redraws its ansi
+//! render in the terminal after every step.
+
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use arena_client::blocking::Client;
+use arena_client::{Action, CreateOptions, Frame, RenderMode, ScenarioSource};
+use arena_protocol::session::ConnectionFlags;
+use arena_protocol::{META_FASTER, META_IDLE, Space};
+
+/// Arguments of `arena play`.
+#[derive(Debug, clap::Args)]
+pub struct PlayArgs {
+    #[command(flatten)]
+    connection: ConnectionFlags,
+    /// Scenario on the server (merge, overtake, highway, ...).
+    #[arg(long, default_value = "merge")]
+    scenario: String,
+    /// How every agent acts: idle (keep lane and speed), faster, or random.
+    #[arg(long, value_enum, default_value_t = Policy::Idle)]
+    policy: Policy,
+    /// Seed of the episode (and of the random policy).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Episodes to play.
+    #[arg(long, default_value_t = 1)]
+    episodes: u32,
+    /// Playback speed: 1 shows simulated time as it passes; 0 draws as fast as it can.
+    #[arg(long, default_value_t = 1.0)]
+    speed: f64,
+}
+
+/// Built-in policies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Policy {
+    Idle,
+    Faster,
+    Random,
+}
+
+/// Runs `arena play`.
+pub fn run(args: PlayArgs) -> anyhow::Result<()> {
+    let client = Client::connect(&args.connection).context("cannot connect")?;
+    let server = client.pick_server()?;
+    let mut env = client.create_env(&server, ScenarioSource::Named(args.scenario.clone()), CreateOptions::default())?;
+    let specs = env.specs().clone();
+    let mut random = args.seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    for episode in 0..args.episodes {
+        env.reset(Some(args.seed + u64::from(episode)), vec![])?;
+        let mut live = specs.possible_agents.clone();
+        let mut returns = vec![0.0; specs.possible_agents.len()];
+        let mut cycle = 0;
+        while !live.is_empty() {
+            let started = Instant::now();
+            let actions = live
+                .iter()
+                .map(|agent| {
+                    let space = specs.action_spaces.iter().find(|(a, _)| a == agent).map(|(_, s)| s);
+                    (agent.clone(), choose(args.policy, space, &mut random))
+                })
+                .collect();
+            let reply = env.step(actions)?;
+            for (agent, reward) in &reply.rewards {
+                if let Some(k) = specs.possible_agents.iter().position(|a| a == agent) {
+                    returns[k] += reward;
+                }
+            }
+            live = reply.agents.clone();
+            cycle += 1;
+            if let Frame::Ansi(text) = env.render(RenderMode::Ansi)? {
+                print!(
+                    "\x1b[2J\x1b[H{} — episode {} step {cycle}/{}\n{text}",
+                    args.scenario,
+                    episode + 1,
+                    specs.max_cycles
+                );
+                for (agent, total) in specs.possible_agents.iter().zip(&returns) {
+                    println!("{agent}: return {total:.1}");
+                }
+            }
+            if args.speed > 0.0 {
+                let frame = Duration::from_secs_f64(specs.dt / args.speed);
+                std::thread::sleep(frame.saturating_sub(started.elapsed()));
+            }
+        }
+    }
+    env.close()?;
+    client.close()?;
+    Ok(())
+}
+
+fn choose(policy: Policy, space: Option<&Space>, state: &mut u64) -> Action {
+    *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let draw = (*state >> 33) as f64 / (1u64 << 31) as f64;
+    match (policy, space) {
+        (Policy::Idle, Some(Space::Box { .. })) => Action::Continuous([0.0, 0.0]),
+        (Policy::Faster, Some(Space::Box { high, .. })) => Action::Continuous([high[0] / 2.0, 0.0]),
+        (Policy::Random, Some(Space::Box { low, high, .. })) => {
+            Action::Continuous([low[0] + (high[0] - low[0]) * draw as f32, 0.0])
+        }
+        (Policy::Random, _) => Action::Meta((draw * 5.0) as u32 % 5),
+        (Policy::Faster, _) => Action::Meta(META_FASTER),
+        (Policy::Idle, _) => Action::Meta(META_IDLE),
+    }
+}

@@ -1,0 +1,420 @@
+//! Every request and reply, as serde types. Maps are `Vec<(key, value)>` in a fixed
+//! order (agents in `possible_agents` order), so encodings are deterministic.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::ErrorReply;
+use crate::spaces::Space;
+
+macro_rules! hex_id {
+    ($name:ident, $what:literal) => {
+        #[doc = concat!("A 128-bit ", $what, " id, shown as 32 hex digits.")]
+        #[repr(transparent)]
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+        pub struct $name(pub u128);
+
+        impl fmt::Display for $name {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, "{:032x}", self.0)
+            }
+        }
+
+        impl FromStr for $name {
+            type Err = std::num::ParseIntError;
+            fn from_str(text: &str) -> Result<Self, Self::Err> {
+                u128::from_str_radix(text, 16).map($name)
+            }
+        }
+    };
+}
+
+hex_id!(EnvId, "env");
+hex_id!(ClientId, "client");
+
+/// Everything a client asks. `version` is first, so any version can read it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Request {
+    /// `PROTOCOL_VERSION` of the sender.
+    pub version: u16,
+    /// Who asks: envs answer only the client that created them.
+    pub client: ClientId,
+    /// What is asked.
+    pub body: RequestBody,
+}
+
+/// The requests.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum RequestBody {
+    /// Version, scenarios and load of the server.
+    ServerInfo,
+    /// A new env from a scenario.
+    CreateEnv {
+        /// Which scenario.
+        scenario: ScenarioSource,
+        /// Overrides and env options.
+        options: CreateOptions,
+    },
+    /// Start an episode.
+    Reset {
+        /// The env.
+        env: EnvId,
+        /// Sequence number (see `Step`).
+        seq: u64,
+        /// Seed of the episode; none continues the env's seed stream.
+        seed: Option<u64>,
+        /// Options; unknown keys are ignored.
+        options: Vec<(String, OptionValue)>,
+    },
+    /// One env step.
+    Step {
+        /// The env.
+        env: EnvId,
+        /// Grows by one per reset or step; resending the last one returns the cached
+        /// reply without stepping again; an older one gets `StaleSequence`.
+        seq: u64,
+        /// Actions of live agents; an agent left out takes the default action.
+        actions: Vec<(String, Action)>,
+    },
+    /// Steps of many envs of this client, in one round trip.
+    StepBatch {
+        /// One entry per env.
+        steps: Vec<BatchStep>,
+    },
+    /// A picture of the env.
+    Render {
+        /// The env.
+        env: EnvId,
+        /// Which picture.
+        mode: RenderMode,
+    },
+    /// The global state.
+    State {
+        /// The env.
+        env: EnvId,
+    },
+    /// The env's specs again.
+    Specs {
+        /// The env.
+        env: EnvId,
+    },
+    /// Close the env.
+    Close {
+        /// The env.
+        env: EnvId,
+    },
+}
+
+/// One env's step within a `StepBatch`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BatchStep {
+    /// The env.
+    pub env: EnvId,
+    /// Its sequence number.
+    pub seq: u64,
+    /// Its actions.
+    pub actions: Vec<(String, Action)>,
+}
+
+/// Where a scenario comes from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ScenarioSource {
+    /// A scenario the server has, by name ("merge").
+    Named(String),
+    /// A scenario file's text sent by the client, validated exactly as files are.
+    Inline {
+        /// Name used in error messages ("mine.toml").
+        file_name: String,
+        /// The TOML text.
+        text: String,
+    },
+}
+
+/// Options of `CreateEnv`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct CreateOptions {
+    /// (dotted key, value) overrides applied to the scenario before validation, e.g.
+    /// ("vehicle.ac.speed", Float(18.0)); a `Str` that is a TOML value (an inline
+    /// table) is taken as that value.
+    pub overrides: Vec<(String, OptionValue)>,
+    /// Action type of every agent, instead of the scenario's.
+    pub action_type: Option<ActionType>,
+    /// Observation kind.
+    pub observation: Option<ObservationKind>,
+    /// Episode length in steps, instead of the scenario's.
+    pub max_cycles: Option<u32>,
+    /// (height, width) of `RgbArray` frames.
+    pub render_size: Option<(u32, u32)>,
+}
+
+/// A value of an option or override.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum OptionValue {
+    /// A boolean.
+    Bool(bool),
+    /// An integer.
+    Int(i64),
+    /// A float.
+    Float(f64),
+    /// A string.
+    Str(String),
+}
+
+/// How agents act.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ActionType {
+    /// Discrete 5: lane left, idle, lane right, faster, slower.
+    Meta,
+    /// Box 2: acceleration (m/s^2), preview offset from the lane centre (m).
+    Continuous,
+}
+
+/// What agents observe.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ObservationKind {
+    /// The kinematics matrix.
+    Kinematics,
+    /// A Dict of the kinematics matrix and an `action_mask`.
+    KinematicsWithMask,
+}
+
+/// Meta action: change to the lane on the left.
+pub const META_LANE_LEFT: u32 = 0;
+/// Meta action: keep lane and target speed.
+pub const META_IDLE: u32 = 1;
+/// Meta action: change to the lane on the right.
+pub const META_LANE_RIGHT: u32 = 2;
+/// Meta action: next higher target speed.
+pub const META_FASTER: u32 = 3;
+/// Meta action: next lower target speed.
+pub const META_SLOWER: u32 = 4;
+
+/// One agent's action.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Action {
+    /// A meta action, 0..5.
+    Meta(u32),
+    /// [acceleration, preview offset].
+    Continuous([f32; 2]),
+}
+
+/// Picture kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RenderMode {
+    /// Top-down RGB, height x width x 3 uint8.
+    RgbArray,
+    /// Text.
+    Ansi,
+}
+
+/// Every reply. `version` is first.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Reply {
+    /// `PROTOCOL_VERSION` of the server.
+    pub version: u16,
+    /// The answer.
+    pub body: ReplyBody,
+}
+
+/// The replies.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ReplyBody {
+    /// To `ServerInfo`.
+    ServerInfo(ServerInfo),
+    /// To `CreateEnv`.
+    Created {
+        /// The new env's id: keep it secret, it is the only key to the env.
+        env: EnvId,
+        /// Its specs.
+        specs: EnvSpecs,
+    },
+    /// To `Reset`.
+    Reset(ResetReply),
+    /// To `Step`.
+    Step(StepReply),
+    /// To `StepBatch`, one item per env in request order.
+    StepBatch(Vec<BatchItem>),
+    /// To `Render`.
+    Render(Frame),
+    /// To `State`.
+    State(Observation),
+    /// To `Specs`.
+    Specs(EnvSpecs),
+    /// To `Close`.
+    Closed,
+    /// To anything that failed.
+    Error(ErrorReply),
+}
+
+/// One env's result within a batch.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum BatchItem {
+    /// It stepped.
+    Ok(StepReply),
+    /// It did not.
+    Err(ErrorReply),
+}
+
+/// What a server is and holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ServerInfo {
+    /// Its id.
+    pub server_id: String,
+    /// Its crate version.
+    pub version: String,
+    /// Its protocol version.
+    pub protocol: u16,
+    /// Scenario names it can create envs from.
+    pub scenarios: Vec<String>,
+    /// Envs alive now.
+    pub envs: u32,
+    /// Most envs it holds.
+    pub max_envs: u32,
+}
+
+/// Agents, spaces and timing of an env.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EnvSpecs {
+    /// Every agent that can appear, in a fixed order.
+    pub possible_agents: Vec<String>,
+    /// Observation space per agent.
+    pub observation_spaces: Vec<(String, Space)>,
+    /// Action space per agent.
+    pub action_spaces: Vec<(String, Space)>,
+    /// Space of `State`.
+    pub state_space: Space,
+    /// Simulated seconds per step.
+    pub dt: f64,
+    /// Steps per episode before every agent is truncated.
+    pub max_cycles: u32,
+    /// Frames per simulated second (1 / dt, at least 1).
+    pub render_fps: u32,
+    /// Render modes offered.
+    pub render_modes: Vec<RenderMode>,
+}
+
+/// An n-dimensional array, row-major.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Tensor {
+    /// Dimensions.
+    pub shape: Vec<u32>,
+    /// Elements.
+    pub data: TensorData,
+}
+
+/// Typed elements of a tensor.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum TensorData {
+    /// float32.
+    F32(Vec<f32>),
+    /// uint8.
+    U8(Vec<u8>),
+    /// int8.
+    I8(Vec<i8>),
+    /// int64.
+    I64(Vec<i64>),
+}
+
+impl TensorData {
+    /// Number of elements.
+    pub fn len(&self) -> usize {
+        match self {
+            TensorData::F32(v) => v.len(),
+            TensorData::U8(v) => v.len(),
+            TensorData::I8(v) => v.len(),
+            TensorData::I64(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no elements.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl Tensor {
+    /// A tensor whose shape and data agree, or `None`.
+    pub fn new(shape: Vec<u32>, data: TensorData) -> Option<Tensor> {
+        let count = shape.iter().try_fold(1usize, |n, &d| n.checked_mul(d as usize))?;
+        (count == data.len()).then_some(Tensor { shape, data })
+    }
+}
+
+/// An observation or a state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Observation {
+    /// One array.
+    Tensor(Tensor),
+    /// Named arrays (a Gymnasium Dict), keys sorted.
+    Dict(Vec<(String, Tensor)>),
+}
+
+/// The reply to `Reset`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ResetReply {
+    /// The request's sequence number.
+    pub seq: u64,
+    /// Per agent.
+    pub observations: Vec<(String, Observation)>,
+    /// Per agent.
+    pub infos: Vec<(String, Info)>,
+}
+
+/// The reply to `Step`: the five dicts, keyed by every agent live before the step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepReply {
+    /// The request's sequence number.
+    pub seq: u64,
+    /// Per agent.
+    pub observations: Vec<(String, Observation)>,
+    /// Per agent.
+    pub rewards: Vec<(String, f64)>,
+    /// Per agent.
+    pub terminations: Vec<(String, bool)>,
+    /// Per agent.
+    pub truncations: Vec<(String, bool)>,
+    /// Per agent.
+    pub infos: Vec<(String, Info)>,
+    /// Agents live after the step.
+    pub agents: Vec<String>,
+}
+
+/// An agent's info dict.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Info {
+    /// Entries, in a fixed order.
+    pub values: Vec<(String, InfoValue)>,
+}
+
+/// An info value.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum InfoValue {
+    /// A float.
+    F64(f64),
+    /// A boolean.
+    Bool(bool),
+    /// A string.
+    Str(String),
+    /// An integer.
+    I64(i64),
+    /// Floats.
+    F64s(Vec<f64>),
+}
+
+/// A rendered frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Frame {
+    /// height x width x 3 bytes, row-major.
+    Rgb {
+        /// Rows.
+        height: u32,
+        /// Columns.
+        width: u32,
+        /// RGB bytes.
+        pixels: Vec<u8>,
+    },
+    /// A text picture.
+    Ansi(String),
+}

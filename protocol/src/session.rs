@@ -1,0 +1,139 @@
+//! Connection flags shared by the server, the CLI, the Python package and the tests,
+//! turned into a `zenoh::Config` in this one place (enabled by the `session` feature).
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// The endpoint a server listens on and a client connects to when none is given.
+pub const DEFAULT_ENDPOINT: &str = "tcp/127.0.0.1:7447";
+
+/// Which side of the connection a process is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// Listens on `DEFAULT_ENDPOINT` unless told otherwise.
+    Server,
+    /// Connects to `DEFAULT_ENDPOINT` unless told otherwise.
+    Client,
+}
+
+/// Zenoh's session modes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum Mode {
+    /// Talks to other peers directly (the default).
+    #[default]
+    Peer,
+    /// Routes for others (an arena-server can be the router of a site).
+    Router,
+    /// Talks only through the router or peer it connects to.
+    Client,
+}
+
+impl Mode {
+    fn name(self) -> &'static str {
+        match self {
+            Mode::Peer => "peer",
+            Mode::Router => "router",
+            Mode::Client => "client",
+        }
+    }
+}
+
+/// How to reach the Zenoh network.
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct ConnectionFlags {
+    /// Zenoh session mode.
+    #[arg(long, value_enum, default_value_t = Mode::Peer)]
+    pub mode: Mode,
+    /// Endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable). A server with neither
+    /// --listen nor --connect listens on tcp/127.0.0.1:7447.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub listen: Vec<String>,
+    /// Endpoint to connect to (repeatable). A client with neither --listen nor --connect
+    /// connects to tcp/127.0.0.1:7447.
+    #[arg(long, value_name = "ENDPOINT")]
+    pub connect: Vec<String>,
+    /// Key-expression prefix every server and client of one deployment shares.
+    #[arg(long, default_value = "arena")]
+    pub prefix: String,
+    /// A Zenoh configuration file (JSON5); the flags above are applied on top of it.
+    #[arg(long, value_name = "FILE")]
+    pub zenoh_config: Option<PathBuf>,
+    /// Turn on multicast scouting, to find peers on the LAN without endpoints.
+    #[arg(long)]
+    pub scout: bool,
+    /// Seconds a client waits for each reply before retrying.
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    pub timeout: f64,
+    /// How many times a client resends a request that timed out (steps keep their
+    /// sequence number, so a retry never steps twice).
+    #[arg(long, default_value_t = 2)]
+    pub retries: u32,
+}
+
+impl Default for ConnectionFlags {
+    fn default() -> Self {
+        ConnectionFlags {
+            mode: Mode::Peer,
+            listen: Vec::new(),
+            connect: Vec::new(),
+            prefix: "arena".to_string(),
+            zenoh_config: None,
+            scout: false,
+            timeout: 10.0,
+            retries: 2,
+        }
+    }
+}
+
+impl ConnectionFlags {
+    /// Flags for a client connecting to `endpoint`.
+    pub fn connecting_to(endpoint: &str) -> ConnectionFlags {
+        ConnectionFlags { connect: vec![endpoint.to_string()], ..ConnectionFlags::default() }
+    }
+
+    /// The per-attempt reply timeout.
+    pub fn timeout(&self) -> Duration {
+        Duration::from_secs_f64(if self.timeout.is_finite() && self.timeout > 0.0 { self.timeout } else { 10.0 })
+    }
+
+    /// The endpoints the session will listen on (server) or connect to (client).
+    pub fn endpoints(&self, role: Role) -> Vec<String> {
+        match role {
+            Role::Server if self.listen.is_empty() && self.connect.is_empty() => vec![DEFAULT_ENDPOINT.to_string()],
+            Role::Server => self.listen.clone(),
+            Role::Client if self.listen.is_empty() && self.connect.is_empty() => vec![DEFAULT_ENDPOINT.to_string()],
+            Role::Client => self.connect.clone(),
+        }
+    }
+
+    /// The Zenoh configuration these flags describe, or what is wrong with them.
+    pub fn zenoh_config(&self, role: Role) -> Result<zenoh::Config, String> {
+        crate::keys::check_prefix(&self.prefix).map_err(|e| e.to_string())?;
+        let mut config = match &self.zenoh_config {
+            Some(path) => zenoh::Config::from_file(path)
+                .map_err(|e| format!("cannot read Zenoh config {}: {e}", path.display()))?,
+            None => zenoh::Config::default(),
+        };
+        let (mut listen, mut connect) = (self.listen.clone(), self.connect.clone());
+        if listen.is_empty() && connect.is_empty() {
+            match role {
+                Role::Server => listen.push(DEFAULT_ENDPOINT.to_string()),
+                Role::Client => connect.push(DEFAULT_ENDPOINT.to_string()),
+            }
+        }
+        let set = |config: &mut zenoh::Config, key: &str, value: String| {
+            config.insert_json5(key, &value).map_err(|e| format!("invalid Zenoh setting {key} = {value}: {e}"))
+        };
+        let quoted =
+            |items: &[String]| format!("[{}]", items.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(","));
+        set(&mut config, "mode", format!("{:?}", self.mode.name()))?;
+        if !listen.is_empty() {
+            set(&mut config, "listen/endpoints", quoted(&listen))?;
+        }
+        if !connect.is_empty() {
+            set(&mut config, "connect/endpoints", quoted(&connect))?;
+        }
+        set(&mut config, "scouting/multicast/enabled", self.scout.to_string())?;
+        Ok(config)
+    }
+}

@@ -1,0 +1,318 @@
+//! Motion planning of §V-B: the Delta-u MPC of eq. (25)–(29) on the world core's
+//! linearised, discretised driver + bicycle model (eq. 22–24, `dynamics`), with the
+//! potential field (eq. 19–21) as its first output, linearised along the predicted path,
+//! the lateral error to the target lane's centre and the heading error as the other two.
+//! The input is the preview point Y_p; a_x is the game's decision, held over the horizon.
+//!
+//! Condensed, the problem is a QP in the N_c input increments, solved by clarabel. The
+//! solver is built once per problem size and then only has P, q and b overwritten
+//! (clarabel's data updates); equilibration is off, so a solve depends on the problem
+//! data alone and a reused solver returns the same bits as a fresh one (tested).
+
+use std::cell::RefCell;
+
+use clarabel::algebra::CscMatrix;
+use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus};
+use nalgebra::{DMatrix, DVector, SVector};
+use serde::{Deserialize, Serialize};
+
+use super::field::Field;
+use crate::dynamics::{self, Command, DriverParams, STATES, VehicleParams, VehicleState};
+
+/// The MPC's constants; the paper leaves all of them open.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MpcParams {
+    /// N_p of eq. (25), prediction horizon (steps of the control period). 25, chosen
+    /// here: 2.5 s at 10 Hz, past the driver's preview time and most of a lane change.
+    pub prediction_horizon: usize,
+    /// N_c of eq. (25), control horizon (steps). 10, chosen here: 1 s of input moves.
+    pub control_horizon: usize,
+    /// Q's weight on y_1, the potential field (1/unit^2). 20, chosen here.
+    pub field_weight: f64,
+    /// Q's weight on y_2, the lateral error to the target lane's centre (1/m^2). 1.
+    pub lateral_weight: f64,
+    /// Q's weight on y_3, the heading error to the lane (1/rad^2). 30, chosen here.
+    pub heading_weight: f64,
+    /// R of eq. (26), on each Delta Y_p (1/m^2). 4, chosen here.
+    pub rate_weight: f64,
+    /// Delta u_max of eq. (27) (m per step): the preview point moves at most this per
+    /// control period. 0.5, chosen here (5 m/s sideways).
+    pub max_step: f64,
+    /// u_min, u_max of eq. (27): Y_p stays within the road's outer lane centres widened
+    /// by this (m). 2, chosen here (to the road's edges).
+    pub preview_margin: f64,
+    /// Below this speed (m/s) the linearisation (which divides by v_x) is not used: Y_p
+    /// is the target lane's centre. 2, chosen here.
+    pub min_speed: f64,
+}
+
+impl Default for MpcParams {
+    fn default() -> Self {
+        MpcParams {
+            prediction_horizon: 25,
+            control_horizon: 10,
+            field_weight: 20.0,
+            lateral_weight: 1.0,
+            heading_weight: 30.0,
+            rate_weight: 4.0,
+            max_step: 0.5,
+            preview_margin: 2.0,
+            min_speed: 2.0,
+        }
+    }
+}
+
+/// One planning problem.
+#[derive(Debug, Clone, Copy)]
+pub struct MpcProblem<'a> {
+    /// The car now.
+    pub state: VehicleState,
+    /// a_x over the horizon (the decision's).
+    pub accel: f64,
+    /// u(k-1): the preview point applied last period (m).
+    pub previous_preview: f64,
+    /// The target lane's centre (m): y_2 is measured from it.
+    pub target: f64,
+    /// Road curvature at the car (1/m).
+    pub curvature: f64,
+    /// Table II.
+    pub vehicle: &'a VehicleParams,
+    /// Table I.
+    pub driver: &'a DriverParams,
+    /// Delta T of eq. (24) (s): the control period.
+    pub dt: f64,
+    /// The potential field around the car.
+    pub field: &'a Field,
+    /// Last period's Delta u plan, used (shifted) as the path the field is linearised on.
+    pub nominal: &'a [f64],
+    /// [u_min, u_max] (m).
+    pub preview_bounds: (f64, f64),
+}
+
+/// A solved plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MpcSolution {
+    /// u(k|k) of eq. (29): the preview point to apply now (m).
+    pub preview: f64,
+    /// Delta u* of eq. (28).
+    pub plan: Vec<f64>,
+    /// Interior-point iterations (0 when the low-speed rule applied).
+    pub iterations: u32,
+}
+
+/// Occurs when the MPC cannot produce a plan; the driver then falls back.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MpcError {
+    /// Occurs when the problem data are not finite (a state blew up).
+    NonFinite,
+    /// Occurs when clarabel refuses the problem at setup.
+    Setup(String),
+    /// Occurs when clarabel stops without a solution.
+    Solver(String),
+}
+
+impl std::fmt::Display for MpcError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MpcError::NonFinite => write!(f, "MPC problem data not finite"),
+            MpcError::Setup(message) => write!(f, "MPC QP refused at setup: {message}"),
+            MpcError::Solver(status) => write!(f, "MPC QP not solved: {status}"),
+        }
+    }
+}
+
+/// The QP of eq. (26)–(27) in condensed form: min 1/2 z'Pz + q'z s.t. A z <= b, z = Delta u.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Qp {
+    /// The Hessian (dense, symmetric).
+    pub p: DMatrix<f64>,
+    /// The linear term.
+    pub q: DVector<f64>,
+    /// Right-hand sides of the stacked bounds [u <= max; -u <= -min; du <= max; -du <= max].
+    pub b: Vec<f64>,
+}
+
+/// Builds the condensed QP: predicts the outputs of eq. (25b) as affine functions of the
+/// increments and sums eq. (26).
+pub fn build_qp(problem: &MpcProblem, params: &MpcParams) -> Qp {
+    let n = params.control_horizon.max(1);
+    let u_prev = problem.previous_preview.clamp(problem.preview_bounds.0, problem.preview_bounds.1);
+    let command = Command { accel: problem.accel, preview: u_prev };
+    let lin = dynamics::linearise(&problem.state, command, problem.curvature, problem.vehicle, problem.driver); // eq. (22)–(23)
+    let disc = lin.discretise(problem.dt); // eq. (24)
+    let b_y: SVector<f64, STATES> = disc.b.column(1).into_owned();
+    let drift: SVector<f64, STATES> = disc.b.column(0) * problem.accel + disc.offset;
+    let mut nominal: Vec<f64> = problem.nominal.iter().skip(1).copied().collect();
+    nominal.resize(n, 0.0);
+
+    let mut x = SVector::<f64, STATES>::from(problem.state.to_array());
+    let mut sens = vec![SVector::<f64, STATES>::zeros(); n];
+    let (mut p, mut q) = (DMatrix::<f64>::zeros(n, n), DVector::<f64>::zeros(n));
+    let weights = [params.field_weight, params.lateral_weight, params.heading_weight];
+    for k in 0..params.prediction_horizon {
+        x = disc.a * x + b_y * u_prev + drift; // eq. (24) with u(k) = u(k-1) + sum of Delta u
+        for (j, column) in sens.iter_mut().enumerate() {
+            *column = disc.a * *column + if j <= k { b_y } else { SVector::zeros() };
+        }
+        let t = (k + 1) as f64 * problem.dt;
+        let row = |i: usize| DVector::from_iterator(n, sens.iter().map(|c| c[i]));
+        let (s_row, d_row, heading_row) = (row(4), row(5), row(3));
+        let nominal_s = x[4] + s_row.dot(&DVector::from_column_slice(&nominal));
+        let nominal_d = x[5] + d_row.dot(&DVector::from_column_slice(&nominal));
+        let (value, grad_s, grad_d) = problem.field.gradient(nominal_s, nominal_d, t);
+        // y_1 linearised at the nominal path; y_2, y_3 exact in the linear model.
+        let outputs = [
+            (&s_row * grad_s + &d_row * grad_d, value + grad_s * (x[4] - nominal_s) + grad_d * (x[5] - nominal_d)),
+            (d_row, x[5] - problem.target),
+            (heading_row, x[3]),
+        ];
+        for ((gain, constant), weight) in outputs.iter().zip(weights) {
+            p += gain * gain.transpose() * weight; // eq. (26), ||y||_Q^2
+            q += gain * (constant * weight);
+        }
+    }
+    for i in 0..n {
+        p[(i, i)] += params.rate_weight; // eq. (26), ||Delta u||_R^2
+    }
+    let (low, high) = problem.preview_bounds;
+    let mut b = Vec::with_capacity(4 * n);
+    b.extend(std::iter::repeat_n(high - u_prev, n)); // eq. (27): u <= u_max
+    b.extend(std::iter::repeat_n(u_prev - low, n)); // u >= u_min
+    b.extend(std::iter::repeat_n(params.max_step, 2 * n)); // |Delta u| <= Delta u_max
+    Qp { p, q, b }
+}
+
+/// The solver workspace: one clarabel solver per problem size, updated in place.
+pub struct Mpc {
+    cache: Option<(usize, DefaultSolver<f64>)>,
+}
+
+impl Default for Mpc {
+    fn default() -> Self {
+        Mpc::new()
+    }
+}
+
+impl std::fmt::Debug for Mpc {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Mpc").field("size", &self.cache.as_ref().map(|(n, _)| *n)).finish()
+    }
+}
+
+fn settings() -> DefaultSettings<f64> {
+    DefaultSettings {
+        verbose: false,
+        equilibrate_enable: false,
+        presolve_enable: false,
+        input_sparse_dropzeros: false,
+        ..DefaultSettings::default()
+    }
+}
+
+/// The upper triangle of a dense n x n matrix in CSC order.
+fn upper_triangle(p: &DMatrix<f64>) -> Vec<f64> {
+    let n = p.nrows();
+    (0..n).flat_map(|j| (0..=j).map(move |i| (i, j))).map(|(i, j)| p[(i, j)]).collect()
+}
+
+/// The constraint matrix [T; -T; I; -I] (T lower-triangular ones: u(k) - u(k-1) summed).
+fn constraint_matrix(n: usize) -> CscMatrix<f64> {
+    let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
+    for j in 0..n {
+        for i in j..n {
+            rowval.push(i);
+            nzval.push(1.0);
+        }
+        for i in j..n {
+            rowval.push(n + i);
+            nzval.push(-1.0);
+        }
+        rowval.extend([2 * n + j, 3 * n + j]);
+        nzval.extend([1.0, -1.0]);
+        colptr.push(rowval.len());
+    }
+    CscMatrix::new(4 * n, n, colptr, rowval, nzval)
+}
+
+fn hessian(n: usize, values: Vec<f64>) -> CscMatrix<f64> {
+    let mut colptr = vec![0];
+    let mut rowval = Vec::with_capacity(n * (n + 1) / 2);
+    for j in 0..n {
+        rowval.extend(0..=j);
+        colptr.push(rowval.len());
+    }
+    CscMatrix::new(n, n, colptr, rowval, values)
+}
+
+impl Mpc {
+    /// An empty workspace.
+    pub fn new() -> Mpc {
+        Mpc { cache: None }
+    }
+
+    /// Solves eq. (27) and returns eq. (28)–(29), or why it could not.
+    pub fn solve(&mut self, problem: &MpcProblem, params: &MpcParams) -> Result<MpcSolution, MpcError> {
+        let (low, high) = problem.preview_bounds;
+        if !(low <= high) {
+            return Err(MpcError::Setup(format!("empty preview bounds [{low}, {high}]")));
+        }
+        let target = problem.target.clamp(low, high);
+        if problem.state.vx < params.min_speed {
+            return Ok(MpcSolution { preview: target, plan: vec![0.0; params.control_horizon], iterations: 0 });
+        }
+        let qp = build_qp(problem, params);
+        let finite = qp.p.iter().chain(qp.q.iter()).chain(qp.b.iter()).all(|v| v.is_finite());
+        if !finite {
+            return Err(MpcError::NonFinite);
+        }
+        let plan = self.solve_qp(&qp)?;
+        let u_prev = problem.previous_preview.clamp(problem.preview_bounds.0, problem.preview_bounds.1);
+        let preview = u_prev + plan.first().copied().unwrap_or(0.0); // eq. (29)
+        Ok(MpcSolution { preview, plan: plan.clone(), iterations: self.iterations() })
+    }
+
+    fn iterations(&self) -> u32 {
+        self.cache.as_ref().map_or(0, |(_, solver)| solver.solution.iterations)
+    }
+
+    /// Solves a condensed QP, reusing the solver of its size.
+    pub fn solve_qp(&mut self, qp: &Qp) -> Result<Vec<f64>, MpcError> {
+        let n = qp.q.len();
+        let values = upper_triangle(&qp.p);
+        let q: Vec<f64> = qp.q.iter().copied().collect();
+        match &mut self.cache {
+            Some((size, solver)) if *size == n => {
+                let updated =
+                    solver.update_P(&values).and_then(|_| solver.update_q(&q)).and_then(|_| solver.update_b(&qp.b));
+                updated.map_err(|e| MpcError::Setup(e.to_string()))?;
+            }
+            _ => {
+                let cones = [NonnegativeConeT(4 * n)];
+                let solver =
+                    DefaultSolver::new(&hessian(n, values), &q, &constraint_matrix(n), &qp.b, &cones, settings())
+                        .map_err(|e| MpcError::Setup(e.to_string()))?;
+                self.cache = Some((n, solver));
+            }
+        }
+        let Some((_, solver)) = &mut self.cache else { return Err(MpcError::Setup("no solver".into())) };
+        solver.solve();
+        match solver.solution.status {
+            SolverStatus::Solved | SolverStatus::AlmostSolved => Ok(solver.solution.x.clone()),
+            status => Err(MpcError::Solver(format!("{status:?}"))),
+        }
+    }
+}
+
+thread_local! {
+    /// Scratch for the world's AV drivers on this thread. Results do not depend on what
+    /// it solved before (see the module doc), so sharing it keeps determinism.
+    static WORKSPACE: RefCell<Mpc> = RefCell::new(Mpc::new());
+}
+
+/// Solves with this thread's workspace.
+pub fn solve(problem: &MpcProblem, params: &MpcParams) -> Result<MpcSolution, MpcError> {
+    WORKSPACE.with(|mpc| mpc.borrow_mut().solve(problem, params))
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,193 @@
+use super::*;
+use crate::dynamics::Style;
+use crate::road::{LaneId, Pose, Road, Section};
+use crate::world::{AgentCommand, Driver, Status, Vehicle, VehicleId, World, WorldParams};
+
+fn table(ec: &[&[f64]], ac: &[&[f64]]) -> PayoffTable {
+    PayoffTable {
+        rows: ec.len(),
+        cols: ec[0].len(),
+        ec: ec.iter().flat_map(|r| r.iter().copied()).collect(),
+        ac: ac.iter().flat_map(|r| r.iter().copied()).collect(),
+    }
+}
+
+#[test]
+fn nash_is_mutual_best_response_and_stackelberg_leads() {
+    // AC answers r0 with c0 and r1 with c1; EC's best answer to either column is r1, so
+    // (r1, c1) is the only equilibrium (EC pays 3). Leading, EC plays r0 and pays 2.
+    let t = table(&[&[2.0, 4.0], &[1.0, 3.0]], &[&[1.0, 2.0], &[3.0, 1.0]]);
+    assert_eq!(t.nash(), Profile { row: 1, col: 1, exact: true });
+    assert_eq!(t.stackelberg(0.0), Profile { row: 0, col: 0, exact: true });
+}
+
+#[test]
+fn without_a_pure_equilibrium_nash_takes_the_least_regret_profile() {
+    let t = table(&[&[0.0, 1.0], &[1.0, 0.0]], &[&[1.0, 0.0], &[0.0, 1.0]]);
+    let profile = t.nash();
+    assert!(!profile.exact);
+}
+
+#[test]
+fn the_follower_set_includes_ties_and_widens_with_the_tolerance() {
+    // r0: AC's best is c0 (1.0), c1 is 5 % worse; r1: AC is indifferent, EC pays 3 either way.
+    let t = table(&[&[1.0, 5.0], &[3.0, 3.0]], &[&[1.0, 1.05], &[1.0, 1.0]]);
+    assert_eq!(t.stackelberg(0.0).row, 0);
+    // With a 10 % tolerance EC must guard against c1 after r0 (cost 5) and prefers r1.
+    assert_eq!(t.stackelberg(0.1), Profile { row: 1, col: 0, exact: true });
+    // Exact ties are in gamma (eq. 17b): EC guards against the worse of two equal replies.
+    let tie = table(&[&[1.0, 4.0], &[2.0, 2.0]], &[&[1.0, 1.0], &[0.0, 1.0]]);
+    assert_eq!(tie.stackelberg(0.0).row, 1);
+}
+
+#[test]
+fn the_leader_never_pays_more_than_at_a_nash_equilibrium() {
+    // Random tables (no ties): the Stackelberg leader can always play its Nash action and
+    // get the same reply, so its cost is at most the Nash cost (DESIGN.md's lead).
+    let mut seed = 12345u64;
+    let mut next = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for _ in 0..500 {
+        let (rows, cols) = (4, 5);
+        let t = PayoffTable {
+            rows,
+            cols,
+            ec: (0..rows * cols).map(|_| next()).collect(),
+            ac: (0..rows * cols).map(|_| next()).collect(),
+        };
+        let (nash, stackelberg) = (t.nash(), t.stackelberg(0.0));
+        if nash.exact {
+            let cost = |p: Profile| t.ec[p.row * cols + p.col];
+            assert!(cost(stackelberg) <= cost(nash), "{t:?}");
+        }
+    }
+}
+
+fn merge_road(lane_end: f64) -> Road {
+    Road::new(
+        Pose { x: 0.0, y: 0.0, heading: 0.0 },
+        vec![Section::Straight { length: 1000.0 }],
+        4.0,
+        vec![25.0, 25.0, 25.0],
+        &[(LaneId(2), lane_end)],
+    )
+}
+
+fn gt(game: Game, role: Role) -> Driver {
+    Driver::Gt(Box::new(GtDriver::new(game, role, AvParams::default())))
+}
+
+fn world_with(road: Road, cars: &[(&str, u32, f64, f64, Style, Driver)]) -> World {
+    let mut world = World::new(road.clone(), WorldParams::default(), 0);
+    for (name, lane, s, speed, style, driver) in cars {
+        world.add(Vehicle::new(name, &road, LaneId(*lane), *s, *speed, *style, driver.clone()));
+    }
+    world
+}
+
+#[test]
+fn styles_choose_their_acceleration_on_an_open_road() {
+    let accel = |style| {
+        let world = world_with(merge_road(1000.0), &[("ec", 1, 100.0, 18.0, style, gt(Game::Nash, Role::Leader))]);
+        expert_decision(&world, VehicleId(0), Game::Nash)
+    };
+    let [a, n, c] = Style::ALL.map(accel);
+    assert!(a.accel > n.accel && n.accel >= c.accel, "{a:?} {n:?} {c:?}");
+    assert!(a.accel > 0.0 && [a, n, c].iter().all(|d| d.sigma == 0 && d.exact));
+    let params = GameParams::default();
+    assert!([a, n, c].iter().all(|d| (params.accel_min..=params.accel_max).contains(&d.accel)));
+}
+
+#[test]
+fn a_car_alongside_blocks_the_change_and_an_empty_lane_takes_it() {
+    // A stopped car 30 m ahead in the middle lane; lane 0 has a car alongside, lane 2 is empty.
+    let stopped = Driver::Agent(AgentCommand::Direct(crate::dynamics::Command { accel: 0.0, preview: -4.0 }));
+    let cars = [
+        ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
+        ("stop", 1, 130.0, 0.0, Style::Normal, stopped),
+        ("beside", 0, 101.0, 20.0, Style::Normal, Driver::Idm),
+    ];
+    for game in Game::ALL {
+        let world = world_with(merge_road(1000.0), &cars);
+        let decision = expert_decision(&world, VehicleId(0), game);
+        assert_eq!(decision.sigma, 1, "{game:?}: {decision:?}");
+    }
+    // With lane 2 ending soon, it is no option, and EC does not squeeze in beside the car.
+    let world = world_with(merge_road(150.0), &cars);
+    let decision = expert_decision(&world, VehicleId(0), Game::Stackelberg);
+    assert_eq!(decision.sigma, 0, "{decision:?}");
+    assert!(decision.accel < 0.0, "it must brake for the stopped car: {decision:?}");
+}
+
+#[test]
+fn the_follower_yields_to_a_leader_that_merges_ahead_of_it() {
+    // EC 8 m ahead of AC, committed to AC's lane: AC brakes (or at least does not speed
+    // up) compared with having no one to answer.
+    let cars = [
+        ("ec", 1, 108.0, 20.0, Style::Normal, gt(Game::Stackelberg, Role::Leader)),
+        ("ac", 0, 100.0, 22.0, Style::Normal, gt(Game::Stackelberg, Role::Follower)),
+    ];
+    let mut world = world_with(merge_road(1000.0), &cars);
+    world.change_lane(VehicleId(0), LaneId(0));
+    let merging = plan(&world, VehicleId(1), None).driver.decision.accel;
+    let alone = world_with(merge_road(1000.0), &cars[1..]);
+    let free = plan(&alone, VehicleId(0), None).driver.decision.accel;
+    assert!(merging < free, "merging {merging} free {free}");
+}
+
+#[test]
+fn stage_cost_switches_terms_with_the_lane_change() {
+    let cars = [
+        ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
+        ("lead", 1, 125.0, 15.0, Style::Normal, Driver::Idm),
+        ("ac", 0, 90.0, 20.0, Style::Normal, Driver::Idm),
+    ];
+    let mut world = world_with(merge_road(1000.0), &cars);
+    let c = CostParams::default();
+    let keeping = stage_cost(&world, VehicleId(0));
+    let gap = 25.0 - c.car_length;
+    let expected = c.kappa_v_log * 25.0 + c.kappa_s_log / (gap * gap + c.epsilon);
+    assert!((keeping.safety - expected).abs() < 1e-9, "{keeping:?}");
+    assert!(keeping.efficiency == 25.0, "lead car within range: v-bar = 15");
+    world.change_lane(VehicleId(0), LaneId(0));
+    let changing = stage_cost(&world, VehicleId(0));
+    let lateral_gap = (100.0f64 + 16.0).sqrt() - c.car_length;
+    assert!((changing.safety - c.kappa_s_lat / (lateral_gap * lateral_gap + c.epsilon)).abs() < 1e-9);
+    assert!(changing.efficiency == 25.0, "lane 0 is free: v-bar = 25");
+}
+
+#[test]
+fn a_broken_state_falls_back_to_braking_in_lane_and_says_so() {
+    let mut world =
+        world_with(merge_road(1000.0), &[("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader))]);
+    world.vehicle_mut(VehicleId(0)).state.yaw_rate = f64::NAN;
+    let step = plan(&world, VehicleId(0), None);
+    assert!(step.driver.diagnostics.fallback.as_deref().is_some_and(|m| m.contains("not finite")));
+    assert_eq!(step.driver.diagnostics.fallbacks, 1);
+    assert_eq!(step.command.accel, -AvParams::default().gt.fallback_brake);
+    assert_eq!(step.command.preview, world.road.lane_center(LaneId(1)));
+    assert_eq!(step.change_to, None);
+}
+
+#[test]
+fn gt_worlds_are_deterministic_and_plain_data() {
+    let cars = [
+        ("ec", 1, 100.0, 20.0, Style::Aggressive, gt(Game::Stackelberg, Role::Leader)),
+        ("ac", 0, 98.0, 15.0, Style::Normal, gt(Game::Stackelberg, Role::Follower)),
+    ];
+    let run = || {
+        let mut world = world_with(merge_road(300.0), &cars);
+        world.advance(6.0);
+        world
+    };
+    let (a, b) = (run(), run());
+    assert!(a == b, "two runs from the same start differ");
+    let clone = a.clone();
+    let (mut a, mut clone) = (a, clone);
+    a.advance(1.0);
+    clone.advance(1.0);
+    assert!(a == clone, "a clone stepped alike differs");
+    assert!(a.vehicles.iter().all(|v| v.status == Status::Driving));
+}

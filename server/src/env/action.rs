@@ -1,0 +1,99 @@
+//! Learners' actions: their spaces, their checks, and how they drive a vehicle.
+//! `meta` is highway-env's DiscreteMetaAction (lane left, idle, lane right, faster,
+//! slower; target speeds 20/25/30 m/s); `continuous` gives the driver model its inputs
+//! directly: an acceleration and a preview point relative to the current lane's centre.
+
+use arena_protocol::{Action, ActionType, DType, ErrorCode, Space};
+
+use crate::road::LaneId;
+use crate::scenario::Scenario;
+use crate::world::{AgentCommand, Driver, VehicleId, World};
+
+/// The target speeds `faster` and `slower` step through (m/s): highway-env's
+/// `MDPVehicle.DEFAULT_TARGET_SPEEDS`.
+pub const TARGET_SPEEDS: [f64; 3] = [20.0, 25.0, 30.0];
+
+const LANE_LEFT: u32 = 0;
+const LANE_RIGHT: u32 = 2;
+const FASTER: u32 = 3;
+const SLOWER: u32 = 4;
+
+/// Bounds of the continuous action: ([accel low, preview low], [accel high, preview high]).
+fn continuous_bounds(scenario: &Scenario) -> ([f32; 2], [f32; 2]) {
+    let accel = crate::traffic::IdmParams::default().accel_limit as f32;
+    let width = scenario.road.lane_width() as f32;
+    ([-accel, -width], [accel, width])
+}
+
+/// The action space of an agent driving with `kind`.
+pub fn space(kind: ActionType, scenario: &Scenario) -> Space {
+    match kind {
+        ActionType::Meta => Space::Discrete { n: 5, start: 0 },
+        ActionType::Continuous => {
+            let (low, high) = continuous_bounds(scenario);
+            Space::Box { low: low.to_vec(), high: high.to_vec(), shape: vec![2], dtype: DType::F32 }
+        }
+    }
+}
+
+/// Refuses an action of the wrong type, out of its space, or not finite.
+pub fn check(action: &Action, kind: ActionType, scenario: &Scenario) -> Result<(), (ErrorCode, String)> {
+    match (action, kind) {
+        (Action::Meta(_), ActionType::Meta) | (Action::Continuous(_), ActionType::Continuous) => {
+            space(kind, scenario).contains_action(action).map_err(|message| (ErrorCode::InvalidAction, message))
+        }
+        (_, expected) => {
+            Err((ErrorCode::WrongActionType, format!("this agent takes {expected:?} actions, got {action:?}")))
+        }
+    }
+}
+
+/// Which meta actions make a difference now: [left, idle, right, faster, slower].
+pub fn meta_mask(world: &World, id: VehicleId) -> [bool; 5] {
+    let vehicle = world.vehicle(id);
+    let lane = vehicle.target_lane.0 as i64;
+    let open = |lane: i64| world.road.has_lane(lane) && world.road.lane_end(LaneId(lane as u32)) > vehicle.state.s;
+    let speed = speed_index(vehicle.target_speed);
+    [open(lane - 1), true, open(lane + 1), speed + 1 < TARGET_SPEEDS.len(), speed > 0]
+}
+
+fn speed_index(target: f64) -> usize {
+    (0..TARGET_SPEEDS.len())
+        .min_by(|&a, &b| (TARGET_SPEEDS[a] - target).abs().total_cmp(&(TARGET_SPEEDS[b] - target).abs()))
+        .unwrap_or(0)
+}
+
+/// Drives `id` with `action`; a missing action keeps the lane and the speed.
+pub fn apply(world: &mut World, id: VehicleId, action: Option<&Action>, kind: ActionType) {
+    match (kind, action) {
+        (ActionType::Meta, action) => {
+            world.vehicle_mut(id).driver = Driver::Agent(AgentCommand::Track);
+            let Some(&Action::Meta(choice)) = action else { return };
+            let mask = meta_mask(world, id);
+            if !mask[choice as usize] {
+                return;
+            }
+            let vehicle = world.vehicle(id);
+            let (lane, speed) = (vehicle.target_lane.0, speed_index(vehicle.target_speed));
+            match choice {
+                LANE_LEFT => world.change_lane(id, LaneId(lane - 1)),
+                LANE_RIGHT => world.change_lane(id, LaneId(lane + 1)),
+                FASTER => world.vehicle_mut(id).target_speed = TARGET_SPEEDS[speed + 1],
+                SLOWER => world.vehicle_mut(id).target_speed = TARGET_SPEEDS[speed - 1],
+                _ => {}
+            }
+        }
+        (ActionType::Continuous, action) => {
+            let lane = world.current_lane(id);
+            let centre = world.road.lane_center(lane);
+            let [accel, offset] = match action {
+                Some(&Action::Continuous(values)) => values.map(f64::from),
+                _ => [0.0, 0.0],
+            };
+            let command = crate::dynamics::Command { accel, preview: centre + offset };
+            let vehicle = world.vehicle_mut(id);
+            vehicle.target_lane = lane;
+            vehicle.driver = Driver::Agent(AgentCommand::Direct(command));
+        }
+    }
+}

@@ -1,0 +1,255 @@
+//! The multi-agent episode on top of a world, with PettingZoo Parallel semantics:
+//! `possible_agents` are the scenario's learner-driven vehicles; `reset` builds a fresh
+//! world from a seed; `step` applies every live agent's action, advances the world by
+//! one env step, and reports observations, rewards, terminations, truncations and infos
+//! for every agent that was live before it. Agents that finish leave at once and never
+//! return. Nothing here reads a clock: the same seed and actions give the same bits.
+
+mod action;
+mod observation;
+mod render;
+mod reward;
+
+use arena_protocol::{
+    Action, ActionType, CreateOptions, EnvSpecs, ErrorCode, ErrorReply, Frame, Info, Observation, ObservationKind,
+    OptionValue, RenderMode, Space,
+};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::scenario::{ActionKind, DriverSpec, Scenario};
+use crate::world::{Status, VehicleId, World};
+
+pub use observation::{KINEMATICS_FEATURES, KINEMATICS_VEHICLES};
+pub use reward::COLLISION_PENALTY;
+
+/// One agent's results of a step, in the order of the agents that were live before it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AgentStep {
+    /// The agent's name.
+    pub agent: String,
+    /// What it observes after the step.
+    pub observation: Observation,
+    /// Minus the paper's cost J (eq. 9) over the step, minus the collision penalty on
+    /// the step the agent crashes or leaves the road.
+    pub reward: f64,
+    /// Crashed, left the road or reached its end.
+    pub terminated: bool,
+    /// The episode reached `max_cycles`.
+    pub truncated: bool,
+    /// Cost components and vehicle facts.
+    pub info: Info,
+}
+
+/// The result of `reset`: per possible agent, its first observation and info.
+pub type ResetOutcome = Vec<(String, Observation, Info)>;
+
+/// A learner's vehicle.
+#[derive(Debug, Clone)]
+struct AgentSlot {
+    name: String,
+    vehicle: VehicleId,
+    action: ActionType,
+    live: bool,
+}
+
+/// A PettingZoo-Parallel env over one scenario.
+#[derive(Debug, Clone)]
+pub struct Env {
+    scenario: Scenario,
+    observation: ObservationKind,
+    max_cycles: u32,
+    render_size: (u32, u32),
+    seeds: ChaCha8Rng,
+    world: Option<World>,
+    agents: Vec<AgentSlot>,
+    cycles: u32,
+}
+
+fn error(code: ErrorCode, message: impl Into<String>) -> ErrorReply {
+    ErrorReply { code, message: message.into(), env_usable: true }
+}
+
+impl Env {
+    /// An env over `scenario`, not yet reset. `entropy` seeds the seeds of resets that do
+    /// not give one (the server passes the env id).
+    pub fn new(scenario: Scenario, options: &CreateOptions, entropy: u64) -> Result<Env, ErrorReply> {
+        let max_cycles = options.max_cycles.unwrap_or(scenario.max_cycles);
+        if max_cycles == 0 {
+            return Err(error(ErrorCode::InvalidScenario, "max_cycles must be at least 1"));
+        }
+        let render_size = options.render_size.unwrap_or((300, 600));
+        if !(16..=4096).contains(&render_size.0) || !(16..=4096).contains(&render_size.1) {
+            return Err(error(
+                ErrorCode::InvalidScenario,
+                format!("render_size {render_size:?} must be within 16..=4096"),
+            ));
+        }
+        let agents = scenario
+            .agents()
+            .map(|spec| AgentSlot {
+                name: spec.name.clone(),
+                vehicle: VehicleId(scenario.vehicles.iter().position(|v| v.name == spec.name).unwrap_or(0) as u32),
+                action: options.action_type.unwrap_or(match spec.driver {
+                    DriverSpec::Agent(ActionKind::Continuous) => ActionType::Continuous,
+                    _ => ActionType::Meta,
+                }),
+                live: false,
+            })
+            .collect();
+        Ok(Env {
+            scenario,
+            observation: options.observation.unwrap_or(ObservationKind::Kinematics),
+            max_cycles,
+            render_size,
+            seeds: ChaCha8Rng::seed_from_u64(entropy),
+            world: None,
+            agents,
+            cycles: 0,
+        })
+    }
+
+    /// Simulated seconds per step.
+    pub fn dt(&self) -> f64 {
+        self.scenario.step_dt
+    }
+
+    /// The world, once reset.
+    pub fn world(&self) -> Option<&World> {
+        self.world.as_ref()
+    }
+
+    /// Names of the agents live now.
+    pub fn live_agents(&self) -> Vec<String> {
+        self.agents.iter().filter(|a| a.live).map(|a| a.name.clone()).collect()
+    }
+
+    /// Spaces, timing and agents: everything a client needs before `reset`.
+    pub fn specs(&self) -> EnvSpecs {
+        let observation_space = observation::space(self.observation, &self.scenario);
+        EnvSpecs {
+            possible_agents: self.agents.iter().map(|a| a.name.clone()).collect(),
+            observation_spaces: self.agents.iter().map(|a| (a.name.clone(), observation_space.clone())).collect(),
+            action_spaces: self
+                .agents
+                .iter()
+                .map(|a| (a.name.clone(), action::space(a.action, &self.scenario)))
+                .collect(),
+            state_space: observation::state_space(&self.scenario),
+            dt: self.scenario.step_dt,
+            max_cycles: self.max_cycles,
+            render_fps: (1.0 / self.scenario.step_dt).round().max(1.0) as u32,
+            render_modes: vec![RenderMode::RgbArray, RenderMode::Ansi],
+        }
+    }
+
+    /// Starts an episode. Options this env does not know are ignored, as PettingZoo asks.
+    pub fn reset(&mut self, seed: Option<u64>, _options: &[(String, OptionValue)]) -> ResetOutcome {
+        if let Some(seed) = seed {
+            self.seeds = ChaCha8Rng::seed_from_u64(seed);
+        }
+        let world = self.scenario.build(self.seeds.next_u64());
+        self.cycles = 0;
+        for agent in &mut self.agents {
+            agent.live = true;
+        }
+        let outcome = self
+            .agents
+            .iter()
+            .map(|agent| {
+                let observation = observation::observe(self.observation, &world, agent.vehicle, agent.action);
+                (agent.name.clone(), observation, reward::info(&world, agent.vehicle, None))
+            })
+            .collect();
+        self.world = Some(world);
+        outcome
+    }
+
+    /// One env step. Every action is checked before any is applied, so a refused step
+    /// leaves the env as it was.
+    pub fn step(&mut self, actions: &[(String, Action)]) -> Result<Vec<AgentStep>, ErrorReply> {
+        let Some(world) = self.world.as_mut() else {
+            return Err(error(ErrorCode::NotReset, "step before reset: call reset first"));
+        };
+        if !self.agents.iter().any(|a| a.live) {
+            return Err(error(ErrorCode::AgentNotLive, "every agent has finished this episode: call reset"));
+        }
+        let mut chosen: Vec<Option<Action>> = vec![None; self.agents.len()];
+        for (name, action) in actions {
+            let Some(index) = self.agents.iter().position(|a| &a.name == name) else {
+                let known = self.agents.iter().map(|a| a.name.as_str()).collect::<Vec<_>>().join(", ");
+                return Err(error(
+                    ErrorCode::UnknownAgent,
+                    format!("no agent named '{name}'; the agents are: {known}"),
+                ));
+            };
+            let agent = &self.agents[index];
+            if !agent.live {
+                return Err(error(ErrorCode::AgentNotLive, format!("agent '{name}' has finished this episode")));
+            }
+            action::check(action, agent.action, &self.scenario)
+                .map_err(|(code, message)| error(code, format!("agent '{name}': {message}")))?;
+            if chosen[index].replace(action.clone()).is_some() {
+                return Err(error(ErrorCode::InvalidAction, format!("agent '{name}' has two actions in one step")));
+            }
+        }
+        for (agent, action) in self.agents.iter().zip(&chosen) {
+            if agent.live {
+                action::apply(world, agent.vehicle, action.as_ref(), agent.action);
+            }
+        }
+        let live_before: Vec<usize> = (0..self.agents.len()).filter(|&i| self.agents[i].live).collect();
+        let driving_before: Vec<bool> =
+            live_before.iter().map(|&i| world.vehicle(self.agents[i].vehicle).status == Status::Driving).collect();
+        let vehicles: Vec<VehicleId> = live_before.iter().map(|&i| self.agents[i].vehicle).collect();
+        let costs = reward::advance(world, &vehicles, self.scenario.step_dt);
+        self.cycles += 1;
+        let truncated = self.cycles >= self.max_cycles;
+        let mut results = Vec::with_capacity(live_before.len());
+        for (k, &i) in live_before.iter().enumerate() {
+            let agent = &self.agents[i];
+            let vehicle = world.vehicle(agent.vehicle);
+            let crashed_now = driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
+            let terminated = vehicle.status != Status::Driving;
+            let reward = -costs[k].weighted - if crashed_now { COLLISION_PENALTY } else { 0.0 };
+            results.push(AgentStep {
+                agent: agent.name.clone(),
+                observation: observation::observe(self.observation, world, agent.vehicle, agent.action),
+                reward,
+                terminated,
+                truncated: truncated && !terminated,
+                info: reward::info(world, agent.vehicle, Some(&costs[k])),
+            });
+        }
+        for (k, &i) in live_before.iter().enumerate() {
+            self.agents[i].live = !(results[k].terminated || results[k].truncated);
+        }
+        Ok(results)
+    }
+
+    /// The global view: every vehicle's kinematics, in a fixed order.
+    pub fn state(&self) -> Result<Observation, ErrorReply> {
+        let world =
+            self.world.as_ref().ok_or_else(|| error(ErrorCode::NotReset, "state before reset: call reset first"))?;
+        Ok(observation::state(world, &self.scenario))
+    }
+
+    /// A picture of the road around the first agent.
+    pub fn render(&self, mode: RenderMode) -> Result<Frame, ErrorReply> {
+        let world =
+            self.world.as_ref().ok_or_else(|| error(ErrorCode::NotReset, "render before reset: call reset first"))?;
+        let focus = self.agents.first().map(|a| a.vehicle);
+        Ok(match mode {
+            RenderMode::RgbArray => render::rgb(world, focus, self.render_size),
+            RenderMode::Ansi => Frame::Ansi(render::ansi(world, focus)),
+        })
+    }
+
+    /// The action space of every agent (the same Space the specs list).
+    pub fn action_space(&self, agent: &str) -> Option<Space> {
+        self.agents.iter().find(|a| a.name == agent).map(|a| action::space(a.action, &self.scenario))
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,89 @@
+//! `arena-server`: hosts highway-arena envs over Zenoh until SIGINT or SIGTERM.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context;
+use arena_protocol::session::{ConnectionFlags, Role};
+use arena_server::transport::{Limits, Scenarios, Server};
+use clap::Parser;
+
+/// Hosts highway-arena envs over Zenoh. With no flags it listens as a Zenoh peer on
+/// tcp/127.0.0.1:7447 with multicast scouting off; clients connect to that endpoint.
+#[derive(Debug, Parser)]
+#[command(name = "arena-server", version, about, long_about = None)]
+struct Args {
+    #[command(flatten)]
+    connection: ConnectionFlags,
+    /// Most envs alive at once; further creates are refused with TooManyEnvs.
+    #[arg(long, default_value_t = 1024)]
+    max_envs: usize,
+    /// Seconds an env may stay untouched before it is closed.
+    #[arg(long, default_value_t = 600.0)]
+    idle_timeout: f64,
+    /// A folder of extra scenario files (*.toml), served by file stem beside the built-in
+    /// merge, overtake and highway.
+    #[arg(long)]
+    scenarios: Option<PathBuf>,
+}
+
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
+    if !(args.idle_timeout.is_finite() && args.idle_timeout > 0.0) {
+        anyhow::bail!("--idle-timeout must be a positive number of seconds, not {}", args.idle_timeout);
+    }
+    let runtime =
+        tokio::runtime::Builder::new_multi_thread().enable_all().build().context("cannot start the tokio runtime")?;
+    runtime.block_on(serve(args))
+}
+
+async fn serve(args: Args) -> anyhow::Result<()> {
+    let (scenarios, problems) = Scenarios::load(args.scenarios.as_deref());
+    for problem in &problems {
+        eprintln!("arena-server: skipping a scenario: {problem}");
+    }
+    let config = args.connection.zenoh_config(Role::Server).map_err(anyhow::Error::msg)?;
+    let session = zenoh::open(config).await.map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))?;
+    let limits = Limits { max_envs: args.max_envs, idle_timeout: Duration::from_secs_f64(args.idle_timeout) };
+    let server = Server::start(session, &args.connection.prefix, scenarios.clone(), limits)
+        .await
+        .map_err(|e| anyhow::anyhow!("cannot declare the server: {e}"))?;
+    let endpoints = args.connection.endpoints(Role::Server).join(", ");
+    println!("arena-server {} (server id {}) serving on {endpoints}", env!("CARGO_PKG_VERSION"), server.id());
+    println!("scenarios: {}", scenarios.names().join(", "));
+    println!("connect from another terminal:");
+    println!(
+        "  arena play --scenario merge --connect {}",
+        args.connection.endpoints(Role::Server).first().cloned().unwrap_or_default()
+    );
+    println!(
+        "  python -c \"import highway_arena; env = highway_arena.parallel_env('merge'); print(env.reset(seed=0))\""
+    );
+    println!("stop with Ctrl-C");
+    shutdown_signal().await;
+    println!("arena-server: shutting down ({} env(s) open)", server.registry().len());
+    server.close().await.map_err(|e| anyhow::anyhow!("closing the session failed: {e}"))?;
+    Ok(())
+}
+
+async fn shutdown_signal() {
+    let interrupt = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut terminate) => {
+                tokio::select! {
+                    _ = interrupt => {}
+                    _ = terminate.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = interrupt.await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = interrupt.await;
+    }
+}

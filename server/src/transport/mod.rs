@@ -1,0 +1,132 @@
+//! The Zenoh side of the server: one session, a liveliness token that lets clients find
+//! this server, one queryable that feeds every request to the `Registry`, a liveliness
+//! subscriber that closes the envs of clients that are gone, and a sweeper for idle envs.
+
+mod registry;
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use arena_protocol::{ClientId, keys};
+use zenoh::Wait;
+use zenoh::sample::SampleKind;
+
+pub use registry::{Limits, Registry, Scenarios};
+
+/// A running server. Dropping it undeclares everything; `close` also ends the session.
+pub struct Server {
+    session: zenoh::Session,
+    server_id: String,
+    registry: Arc<Registry>,
+    _queryable: zenoh::query::Queryable<()>,
+    _echo: zenoh::query::Queryable<()>,
+    _token: zenoh::liveliness::LivelinessToken,
+    _clients: zenoh::pubsub::Subscriber<()>,
+    sweeper: tokio::task::JoinHandle<()>,
+}
+
+impl Server {
+    /// Declares the server on `session` under `prefix`. Must run inside a tokio
+    /// multi-thread runtime (Zenoh needs one).
+    pub async fn start(
+        session: zenoh::Session,
+        prefix: &str,
+        scenarios: Scenarios,
+        limits: Limits,
+    ) -> zenoh::Result<Server> {
+        let server_id = format!("{:032x}", rand::random::<u128>());
+        let registry = Arc::new(Registry::new(server_id.clone(), scenarios, limits));
+
+        let rpc = keys::server_rpc(prefix, &server_id)?;
+        let handler = Arc::clone(&registry);
+        let queryable = session
+            .declare_queryable(rpc)
+            .callback(move |query| {
+                let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+                let answer = handler.handle(&bytes);
+                if let Err(e) = query.reply(query.key_expr().clone(), answer).wait() {
+                    eprintln!("arena-server: could not send a reply: {e}");
+                }
+            })
+            .await?;
+
+        // A raw reply of the size the request asks for (its first 4 bytes, u32 LE,
+        // capped at the message limit): `arena bench` measures Zenoh itself with it.
+        let echo = session
+            .declare_queryable(keys::server_echo(prefix, &server_id)?)
+            .callback(|query| {
+                let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+                let asked = bytes.get(..4).and_then(|b| b.try_into().ok()).map_or(0, u32::from_le_bytes) as usize;
+                let reply = vec![0u8; asked.min(arena_protocol::MAX_MESSAGE_BYTES)];
+                if let Err(e) = query.reply(query.key_expr().clone(), reply).wait() {
+                    eprintln!("arena-server: could not send an echo reply: {e}");
+                }
+            })
+            .await?;
+
+        let token = session.liveliness().declare_token(keys::server_liveliness(prefix, &server_id)?).await?;
+
+        let watcher = Arc::clone(&registry);
+        let prefix_owned = prefix.to_string();
+        let clients = session
+            .liveliness()
+            .declare_subscriber(keys::clients_liveliness_wildcard(prefix)?)
+            .callback(move |sample| {
+                if sample.kind() != SampleKind::Delete {
+                    return;
+                }
+                let id = keys::client_id_from_liveliness(&prefix_owned, sample.key_expr().as_str());
+                if let Some(client) = id.and_then(|id| id.parse::<ClientId>().ok()) {
+                    let closed = watcher.drop_client(client);
+                    if closed > 0 {
+                        eprintln!("arena-server: client {client} is gone; closed its {closed} env(s)");
+                    }
+                }
+            })
+            .await?;
+
+        let sweeper_registry = Arc::clone(&registry);
+        let period = (limits.idle_timeout / 4).clamp(Duration::from_millis(100), Duration::from_secs(30));
+        let sweeper = tokio::spawn(async move {
+            loop {
+                tokio::time::sleep(period).await;
+                let closed = sweeper_registry.reclaim_idle(Instant::now());
+                if closed > 0 {
+                    eprintln!("arena-server: closed {closed} idle env(s)");
+                }
+            }
+        });
+
+        Ok(Server {
+            session,
+            server_id,
+            registry,
+            _queryable: queryable,
+            _echo: echo,
+            _token: token,
+            _clients: clients,
+            sweeper,
+        })
+    }
+
+    /// This server's id (the last part of its liveliness key).
+    pub fn id(&self) -> &str {
+        &self.server_id
+    }
+
+    /// Its envs.
+    pub fn registry(&self) -> &Registry {
+        &self.registry
+    }
+
+    /// Undeclares everything and closes the session.
+    pub async fn close(self) -> zenoh::Result<()> {
+        self.sweeper.abort();
+        let Server { session, _queryable, _echo, _token, _clients, .. } = self;
+        _queryable.undeclare().await?;
+        _echo.undeclare().await?;
+        _token.undeclare().await?;
+        _clients.undeclare().await?;
+        session.close().await
+    }
+}

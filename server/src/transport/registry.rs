@@ -1,0 +1,390 @@
+//! The server's envs and the handling of one request, independent of Zenoh: bytes in,
+//! reply out. Owns the rules a remote client meets — protocol version, size limit,
+//! ownership of envs, sequence numbers that make retries safe, env limits and
+//! reclaiming — so each can be tested without a network and the queryable stays thin.
+
+use std::collections::{HashMap, HashSet};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use arena_protocol::{
+    BatchItem, BatchStep, ClientId, CreateOptions, EnvId, ErrorCode, ErrorReply, MAX_MESSAGE_BYTES, OptionValue,
+    PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetReply, ScenarioSource, ServerInfo, StepReply,
+    decode, encode, peek_version,
+};
+
+use crate::env::Env;
+use crate::scenario::{BUILTIN, Scenario};
+
+/// How much a server takes on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    /// Most envs alive at once.
+    pub max_envs: usize,
+    /// An env nobody touched for this long is closed.
+    pub idle_timeout: Duration,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits { max_envs: 1024, idle_timeout: Duration::from_secs(600) }
+    }
+}
+
+/// One env and what the server remembers about it.
+struct Slot {
+    env: Env,
+    owner: ClientId,
+    /// The last mutating request's sequence number and its encoded reply.
+    last: Option<(u64, Vec<u8>)>,
+    last_used: Instant,
+}
+
+/// Scenario texts the server can create envs from, by name.
+#[derive(Debug, Clone, Default)]
+pub struct Scenarios {
+    entries: Vec<(String, String, String)>,
+}
+
+impl Scenarios {
+    /// The built-in scenarios plus every `*.toml` in `dir`, whose names win on a clash.
+    /// A file that does not load is reported and left out.
+    pub fn load(dir: Option<&std::path::Path>) -> (Scenarios, Vec<String>) {
+        let mut entries: Vec<(String, String, String)> =
+            BUILTIN.iter().map(|(name, file, text)| (name.to_string(), file.to_string(), text.to_string())).collect();
+        let mut problems = Vec::new();
+        if let Some(dir) = dir {
+            match std::fs::read_dir(dir) {
+                Ok(listing) => {
+                    let mut paths: Vec<_> = listing
+                        .flatten()
+                        .map(|e| e.path())
+                        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+                        .collect();
+                    paths.sort();
+                    for path in paths {
+                        match Scenario::load(&path).map(|_| std::fs::read_to_string(&path)) {
+                            Ok(Ok(text)) => {
+                                let name =
+                                    path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+                                let file =
+                                    path.file_name().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+                                entries.retain(|(n, ..)| *n != name);
+                                entries.push((name, file, text));
+                            }
+                            Ok(Err(e)) => problems.push(format!("{}: {e}", path.display())),
+                            Err(e) => problems.push(e.to_string()),
+                        }
+                    }
+                }
+                Err(e) => problems.push(format!("cannot list scenarios in {}: {e}", dir.display())),
+            }
+        }
+        (Scenarios { entries }, problems)
+    }
+
+    /// Scenario names, sorted.
+    pub fn names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self.entries.iter().map(|(n, ..)| n.clone()).collect();
+        names.sort();
+        names
+    }
+
+    fn get(&self, name: &str) -> Option<(&str, &str)> {
+        self.entries.iter().find(|(n, ..)| n == name).map(|(_, file, text)| (file.as_str(), text.as_str()))
+    }
+}
+
+/// Every env of one server.
+pub struct Registry {
+    server_id: String,
+    scenarios: Scenarios,
+    limits: Limits,
+    envs: Mutex<HashMap<EnvId, Arc<Mutex<Slot>>>>,
+    closed: Mutex<HashSet<EnvId>>,
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    // A panic while holding a lock cannot leave an env half-stepped in a way later
+    // requests could see wrongly: steps validate before they mutate. Keep serving.
+    mutex.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+fn error(code: ErrorCode, message: impl Into<String>, env_usable: bool) -> ErrorReply {
+    ErrorReply { code, message: message.into(), env_usable }
+}
+
+fn reply(body: ReplyBody) -> Reply {
+    Reply { version: PROTOCOL_VERSION, body }
+}
+
+fn to_toml(value: &OptionValue) -> toml::Value {
+    match value {
+        OptionValue::Bool(b) => toml::Value::Boolean(*b),
+        OptionValue::Int(i) => toml::Value::Integer(*i),
+        OptionValue::Float(f) => toml::Value::Float(*f),
+        // A string that is a TOML value ("{ kind = \"idm\" }", "[1, 2]") is taken as one,
+        // so tables can be overridden too; anything else is a plain string.
+        OptionValue::Str(s) => format!("v = {s}")
+            .parse::<toml::Table>()
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or_else(|| toml::Value::String(s.clone())),
+    }
+}
+
+impl Registry {
+    /// An empty registry for server `server_id`.
+    pub fn new(server_id: String, scenarios: Scenarios, limits: Limits) -> Registry {
+        Registry { server_id, scenarios, limits, envs: Mutex::new(HashMap::new()), closed: Mutex::new(HashSet::new()) }
+    }
+
+    /// How many envs are alive.
+    pub fn len(&self) -> usize {
+        lock(&self.envs).len()
+    }
+
+    /// Whether no env is alive.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Answers one request, given as the bytes that arrived.
+    pub fn handle(&self, bytes: &[u8]) -> Vec<u8> {
+        match self.answer(bytes) {
+            Ok(encoded) => encoded,
+            Err(err) => encode(&reply(ReplyBody::Error(err))),
+        }
+    }
+
+    fn answer(&self, bytes: &[u8]) -> Result<Vec<u8>, ErrorReply> {
+        if bytes.len() > MAX_MESSAGE_BYTES {
+            return Err(error(
+                ErrorCode::PayloadTooLarge,
+                format!("request of {} bytes exceeds the limit of {MAX_MESSAGE_BYTES}", bytes.len()),
+                true,
+            ));
+        }
+        let request: Request = decode(bytes).map_err(|e| match peek_version(bytes) {
+            Some(version) if version != PROTOCOL_VERSION => wrong_version(version),
+            _ => error(ErrorCode::MalformedRequest, format!("cannot decode the request: {e}"), true),
+        })?;
+        if request.version != PROTOCOL_VERSION {
+            return Err(wrong_version(request.version));
+        }
+        let client = request.client;
+        match request.body {
+            RequestBody::ServerInfo => Ok(encode(&reply(ReplyBody::ServerInfo(self.info())))),
+            RequestBody::CreateEnv { scenario, options } => self.create(client, scenario, &options),
+            RequestBody::Reset { env, seq, seed, options } => self.sequenced(client, env, seq, |slot| {
+                let outcome = slot.env.reset(seed, &options);
+                let mut observations = Vec::with_capacity(outcome.len());
+                let mut infos = Vec::with_capacity(outcome.len());
+                for (agent, observation, info) in outcome {
+                    observations.push((agent.clone(), observation));
+                    infos.push((agent, info));
+                }
+                Ok(ReplyBody::Reset(ResetReply { seq, observations, infos }))
+            }),
+            RequestBody::Step { env, seq, actions } => {
+                self.sequenced(client, env, seq, |slot| step_reply(&mut slot.env, seq, &actions).map(ReplyBody::Step))
+            }
+            RequestBody::StepBatch { steps } => {
+                Ok(encode(&reply(ReplyBody::StepBatch(self.step_batch(client, &steps)))))
+            }
+            RequestBody::Render { env, mode } => {
+                self.with_env(client, env, |slot| slot.env.render(mode).map(ReplyBody::Render))
+            }
+            RequestBody::State { env } => self.with_env(client, env, |slot| slot.env.state().map(ReplyBody::State)),
+            RequestBody::Specs { env } => self.with_env(client, env, |slot| Ok(ReplyBody::Specs(slot.env.specs()))),
+            RequestBody::Close { env } => self.close(client, env),
+        }
+    }
+
+    fn info(&self) -> ServerInfo {
+        ServerInfo {
+            server_id: self.server_id.clone(),
+            version: env!("CARGO_PKG_VERSION").to_string(),
+            protocol: PROTOCOL_VERSION,
+            scenarios: self.scenarios.names(),
+            envs: self.len() as u32,
+            max_envs: self.limits.max_envs as u32,
+        }
+    }
+
+    fn create(&self, owner: ClientId, source: ScenarioSource, options: &CreateOptions) -> Result<Vec<u8>, ErrorReply> {
+        let overrides: Vec<(String, toml::Value)> =
+            options.overrides.iter().map(|(k, v)| (k.clone(), to_toml(v))).collect();
+        let (file, text) = match &source {
+            ScenarioSource::Named(name) => self.scenarios.get(name).ok_or_else(|| {
+                let known = self.scenarios.names().join(", ");
+                error(
+                    ErrorCode::UnknownScenario,
+                    format!("no scenario named '{name}' on this server; it has: {known}"),
+                    true,
+                )
+            })?,
+            ScenarioSource::Inline { file_name, text } => (file_name.as_str(), text.as_str()),
+        };
+        let scenario = Scenario::parse(file, text, &overrides)
+            .map_err(|e| error(ErrorCode::InvalidScenario, e.to_string(), true))?;
+        let id = EnvId(rand::random::<u128>());
+        let env = Env::new(scenario, options, id.0 as u64)?;
+        let specs = env.specs();
+        let mut envs = lock(&self.envs);
+        if envs.len() >= self.limits.max_envs {
+            return Err(error(
+                ErrorCode::TooManyEnvs,
+                format!(
+                    "this server holds its limit of {} envs; close one or use another server",
+                    self.limits.max_envs
+                ),
+                true,
+            ));
+        }
+        let slot = Slot { env, owner, last: None, last_used: Instant::now() };
+        envs.insert(id, Arc::new(Mutex::new(slot)));
+        Ok(encode(&reply(ReplyBody::Created { env: id, specs })))
+    }
+
+    fn slot(&self, client: ClientId, env: EnvId) -> Result<Arc<Mutex<Slot>>, ErrorReply> {
+        let found = lock(&self.envs).get(&env).cloned();
+        match found {
+            // Another client's env looks exactly like one that does not exist.
+            Some(slot) if lock(&slot).owner == client => Ok(slot),
+            None if lock(&self.closed).contains(&env) => {
+                Err(error(ErrorCode::EnvClosed, format!("env {env} was closed; create a new one"), false))
+            }
+            _ => Err(error(ErrorCode::UnknownEnv, format!("no env {env} of yours on this server"), false)),
+        }
+    }
+
+    fn with_env(
+        &self,
+        client: ClientId,
+        env: EnvId,
+        f: impl FnOnce(&mut Slot) -> Result<ReplyBody, ErrorReply>,
+    ) -> Result<Vec<u8>, ErrorReply> {
+        let slot = self.slot(client, env)?;
+        let mut slot = lock(&slot);
+        slot.last_used = Instant::now();
+        f(&mut slot).map(|body| encode(&reply(body)))
+    }
+
+    /// Runs a mutating request once per sequence number: a retry of the last one gets
+    /// the cached reply, an older one is refused.
+    fn sequenced(
+        &self,
+        client: ClientId,
+        env: EnvId,
+        seq: u64,
+        f: impl FnOnce(&mut Slot) -> Result<ReplyBody, ErrorReply>,
+    ) -> Result<Vec<u8>, ErrorReply> {
+        let slot = self.slot(client, env)?;
+        let mut slot = lock(&slot);
+        slot.last_used = Instant::now();
+        match &slot.last {
+            Some((last, cached)) if *last == seq => return Ok(cached.clone()),
+            Some((last, _)) if seq < *last => {
+                return Err(error(
+                    ErrorCode::StaleSequence,
+                    format!("sequence number {seq} is older than the last one, {last}"),
+                    true,
+                ));
+            }
+            _ => {}
+        }
+        let encoded = match f(&mut slot) {
+            Ok(body) => encode(&reply(body)),
+            Err(err) => encode(&reply(ReplyBody::Error(err))),
+        };
+        slot.last = Some((seq, encoded.clone()));
+        Ok(encoded)
+    }
+
+    fn step_batch(&self, client: ClientId, steps: &[BatchStep]) -> Vec<BatchItem> {
+        let one = |step: &BatchStep| -> BatchItem {
+            let encoded = self.sequenced(client, step.env, step.seq, |slot| {
+                step_reply(&mut slot.env, step.seq, &step.actions).map(ReplyBody::Step)
+            });
+            match encoded
+                .and_then(|bytes| decode::<Reply>(&bytes).map_err(|e| error(ErrorCode::Internal, e.to_string(), true)))
+            {
+                Ok(Reply { body: ReplyBody::Step(step), .. }) => BatchItem::Ok(step),
+                Ok(Reply { body: ReplyBody::Error(err), .. }) | Err(err) => BatchItem::Err(err),
+                Ok(other) => BatchItem::Err(error(ErrorCode::Internal, format!("unexpected reply {other:?}"), true)),
+            }
+        };
+        let workers = std::thread::available_parallelism().map_or(1, |n| n.get()).min(steps.len().max(1));
+        if workers <= 1 || steps.len() < 4 {
+            return steps.iter().map(one).collect();
+        }
+        let chunk = steps.len().div_ceil(workers);
+        std::thread::scope(|scope| {
+            let handles: Vec<_> =
+                steps.chunks(chunk).map(|part| scope.spawn(move || part.iter().map(one).collect::<Vec<_>>())).collect();
+            handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
+        })
+    }
+
+    fn close(&self, client: ClientId, env: EnvId) -> Result<Vec<u8>, ErrorReply> {
+        self.slot(client, env)?;
+        lock(&self.envs).remove(&env);
+        lock(&self.closed).insert(env);
+        Ok(encode(&reply(ReplyBody::Closed)))
+    }
+
+    /// Closes every env of `client` (its liveliness token is gone); returns how many.
+    pub fn drop_client(&self, client: ClientId) -> usize {
+        self.retain(|slot| slot.owner != client)
+    }
+
+    /// Closes envs idle for longer than the limit; returns how many.
+    pub fn reclaim_idle(&self, now: Instant) -> usize {
+        let timeout = self.limits.idle_timeout;
+        self.retain(|slot| now.saturating_duration_since(slot.last_used) < timeout)
+    }
+
+    fn retain(&self, keep: impl Fn(&Slot) -> bool) -> usize {
+        let mut envs = lock(&self.envs);
+        let before = envs.len();
+        let mut closed = lock(&self.closed);
+        envs.retain(|id, slot| {
+            let kept = keep(&lock(slot));
+            if !kept {
+                closed.insert(*id);
+            }
+            kept
+        });
+        before - envs.len()
+    }
+}
+
+fn wrong_version(version: u16) -> ErrorReply {
+    error(
+        ErrorCode::WrongVersion,
+        format!("request speaks protocol {version}, this server speaks {PROTOCOL_VERSION}; upgrade the older side"),
+        true,
+    )
+}
+
+fn step_reply(env: &mut Env, seq: u64, actions: &[(String, arena_protocol::Action)]) -> Result<StepReply, ErrorReply> {
+    let steps = env.step(actions)?;
+    let mut reply = StepReply {
+        seq,
+        observations: Vec::with_capacity(steps.len()),
+        rewards: Vec::with_capacity(steps.len()),
+        terminations: Vec::with_capacity(steps.len()),
+        truncations: Vec::with_capacity(steps.len()),
+        infos: Vec::with_capacity(steps.len()),
+        agents: env.live_agents(),
+    };
+    for step in steps {
+        reply.observations.push((step.agent.clone(), step.observation));
+        reply.rewards.push((step.agent.clone(), step.reward));
+        reply.terminations.push((step.agent.clone(), step.terminated));
+        reply.truncations.push((step.agent.clone(), step.truncated));
+        reply.infos.push((step.agent, step.info));
+    }
+    Ok(reply)
+}

@@ -1,0 +1,57 @@
+//! A real arena-server on its own Zenoh session listening on a free 127.0.0.1 port, and
+//! clients on other sessions connecting to it over TCP, multicast scouting off.
+
+#![allow(dead_code)]
+
+use std::time::Duration;
+
+use arena_client::{Client, CreateOptions, RemoteEnv, ScenarioSource};
+use arena_protocol::session::{ConnectionFlags, Role};
+use arena_server::transport::{Limits, Scenarios, Server};
+
+pub struct Harness {
+    pub server: Server,
+    pub endpoint: String,
+}
+
+fn free_port() -> u16 {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind a free port");
+    listener.local_addr().expect("local address").port()
+}
+
+pub async fn start() -> Harness {
+    start_with(Limits::default()).await
+}
+
+pub async fn start_with(limits: Limits) -> Harness {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let flags = ConnectionFlags { listen: vec![endpoint.clone()], ..ConnectionFlags::default() };
+    let session = zenoh::open(flags.zenoh_config(Role::Server).expect("config")).await.expect("open server session");
+    let (scenarios, problems) = Scenarios::load(None);
+    assert!(problems.is_empty());
+    let server = Server::start(session, "arena", scenarios, limits).await.expect("start server");
+    Harness { server, endpoint }
+}
+
+impl Harness {
+    pub async fn client(&self) -> Client {
+        let flags = ConnectionFlags { timeout: 5.0, retries: 1, ..ConnectionFlags::connecting_to(&self.endpoint) };
+        let client = Client::connect(&flags).await.expect("connect client");
+        // Liveliness of a fresh peer takes a moment to propagate.
+        for _ in 0..100 {
+            if client.servers().await.map(|s| s.contains(&self.server.id().to_string())).unwrap_or(false) {
+                return client;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        panic!("the client never saw the server's liveliness token");
+    }
+
+    pub async fn env(&self, client: &Client, scenario: &str) -> RemoteEnv {
+        self.env_with(client, scenario, CreateOptions::default()).await
+    }
+
+    pub async fn env_with(&self, client: &Client, scenario: &str, options: CreateOptions) -> RemoteEnv {
+        client.create_env(self.server.id(), ScenarioSource::Named(scenario.into()), options).await.expect("create env")
+    }
+}

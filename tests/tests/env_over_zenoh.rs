@@ -1,0 +1,300 @@
+//! The env over a real Zenoh session: PettingZoo rules, determinism across clients,
+//! isolation, every kind of bad input, and safe retries.
+
+mod common;
+
+use arena_client::{Action, ClientError, CreateOptions, ErrorCode, OptionValue, ScenarioSource};
+use arena_protocol::session::{ConnectionFlags, Role};
+use arena_protocol::{ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys};
+use zenoh::Wait;
+
+fn code(result: Result<impl std::fmt::Debug, ClientError>) -> ErrorCode {
+    match result {
+        Err(ClientError::Server(reply)) => reply.code,
+        other => panic!("expected a coded error, got {other:?}"),
+    }
+}
+
+fn meta(agent: &str, choice: u32) -> Vec<(String, Action)> {
+    vec![(agent.to_string(), Action::Meta(choice))]
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn agents_leave_at_once_and_never_return() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let mut env =
+        harness.env_with(&client, "merge", CreateOptions { max_cycles: Some(400), ..Default::default() }).await;
+    let reset = env.reset(Some(0), vec![]).await.unwrap();
+    assert_eq!(reset.observations.len(), 1);
+    // Steer left into the adjacent car's lane again and again: ec merges or crashes;
+    // either way it must finish before the lane ends and leave at once.
+    let mut finished = false;
+    for _ in 0..400 {
+        let step = env.step(meta("ec", 0)).await.unwrap();
+        assert_eq!(step.rewards.len(), 1, "every agent live before the step is in every dict");
+        if step.terminations[0].1 || step.truncations[0].1 {
+            assert!(step.agents.is_empty(), "a finished agent leaves `agents` in the same step");
+            finished = true;
+            break;
+        }
+        assert_eq!(step.agents, ["ec"]);
+    }
+    assert!(finished);
+    assert_eq!(code(env.step(meta("ec", 1)).await), ErrorCode::AgentNotLive);
+    assert_eq!(code(env.step(vec![]).await), ErrorCode::AgentNotLive);
+    let again = env.reset(Some(0), vec![]).await.unwrap();
+    assert_eq!(again.observations, reset.observations, "reset brings agents back with the same start");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn missing_action_is_idle() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let mut a = harness.env(&client, "highway").await;
+    let mut b = harness.env(&client, "highway").await;
+    a.reset(Some(8), vec![]).await.unwrap();
+    b.reset(Some(8), vec![]).await.unwrap();
+    for _ in 0..3 {
+        let with_idle = a.step(meta("ego", 1)).await.unwrap();
+        let without = b.step(vec![]).await.unwrap();
+        assert_eq!(with_idle.observations, without.observations);
+        assert_eq!(with_idle.rewards, without.rewards);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_agent_truncates_at_exactly_max_cycles() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let mut env =
+        harness.env_with(&client, "highway", CreateOptions { max_cycles: Some(4), ..Default::default() }).await;
+    assert_eq!(env.specs().max_cycles, 4);
+    env.reset(Some(1), vec![]).await.unwrap();
+    for cycle in 1..=4 {
+        let step = env.step(vec![]).await.unwrap();
+        assert_eq!(step.truncations[0].1, cycle == 4, "cycle {cycle}");
+    }
+    assert_eq!(code(env.step(vec![]).await), ErrorCode::AgentNotLive);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn unknown_option_keys_are_ignored() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let mut env = harness.env(&client, "merge").await;
+    let plain = env.reset(Some(4), vec![]).await.unwrap();
+    let odd = env.reset(Some(4), vec![("no_such_key".into(), OptionValue::Int(3))]).await.unwrap();
+    assert_eq!(plain.observations, odd.observations);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn same_seed_same_replies_across_clients_other_seed_differs() {
+    let harness = common::start().await;
+    let (first, second) = (harness.client().await, harness.client().await);
+    let mut a = harness.env(&first, "highway").await;
+    let mut b = harness.env(&second, "highway").await;
+    let mut c = harness.env(&second, "highway").await;
+    let ra = a.reset(Some(21), vec![]).await.unwrap();
+    let rb = b.reset(Some(21), vec![]).await.unwrap();
+    let rc = c.reset(Some(22), vec![]).await.unwrap();
+    assert_eq!(ra.observations, rb.observations);
+    assert_ne!(ra.observations, rc.observations);
+    for k in 0..6u32 {
+        let (sa, sb) = (a.step(meta("ego", k % 5)).await.unwrap(), b.step(meta("ego", k % 5)).await.unwrap());
+        assert_eq!(format!("{sa:?}"), format!("{sb:?}"), "step {k} differs");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_cannot_touch_another_clients_env() {
+    let harness = common::start().await;
+    let (owner, intruder) = (harness.client().await, harness.client().await);
+    let mut env = harness.env(&owner, "merge").await;
+    env.reset(Some(0), vec![]).await.unwrap();
+    let request = Request {
+        version: PROTOCOL_VERSION,
+        client: intruder.id(),
+        body: RequestBody::Step { env: env.id(), seq: 99, actions: vec![] },
+    };
+    let reply = raw(&harness, &encode(&request)).await;
+    assert!(matches!(reply.body, ReplyBody::Error(ref e) if e.code == ErrorCode::UnknownEnv), "{reply:?}");
+    // The owner's env did not move.
+    assert_eq!(env.step(vec![]).await.unwrap().seq, 2);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_retried_step_returns_the_same_reply_and_steps_once() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let mut env = harness.env(&client, "highway").await;
+    let mut twin = harness.env(&client, "highway").await;
+    env.reset(Some(3), vec![]).await.unwrap();
+    twin.reset(Some(3), vec![]).await.unwrap();
+    let first = env.step_with_seq(2, meta("ego", 3)).await.unwrap();
+    let retried = env.step_with_seq(2, meta("ego", 3)).await.unwrap();
+    assert_eq!(format!("{first:?}"), format!("{retried:?}"));
+    // Had the retry stepped again, the next step would be the twin's third, not second.
+    let next = env.step_with_seq(3, vec![]).await.unwrap();
+    twin.step(meta("ego", 3)).await.unwrap();
+    let twin_next = twin.step(vec![]).await.unwrap();
+    assert_eq!(next.observations, twin_next.observations);
+    assert_eq!(code(env.step_with_seq(1, vec![]).await), ErrorCode::StaleSequence);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_batch_steps_many_envs_in_one_round_trip() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let mut envs = Vec::new();
+    for seed in 0..6 {
+        let mut env = harness.env(&client, "highway").await;
+        env.reset(Some(seed), vec![]).await.unwrap();
+        envs.push(env);
+    }
+    let mut single = harness.env(&client, "highway").await;
+    single.reset(Some(4), vec![]).await.unwrap();
+    let expected = single.step(meta("ego", 2)).await.unwrap();
+    let mut handles: Vec<_> = envs.iter_mut().collect();
+    let replies = client.step_batch(&mut handles, (0..6).map(|_| meta("ego", 2)).collect()).await.unwrap();
+    assert_eq!(replies.len(), 6);
+    assert_eq!(replies[4].as_ref().unwrap().observations, expected.observations);
+}
+
+/// Sends raw bytes to the server's request key from a session of its own.
+async fn raw(harness: &common::Harness, bytes: &[u8]) -> Reply {
+    let flags = ConnectionFlags::connecting_to(&harness.endpoint);
+    let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
+    let key = keys::server_rpc("arena", harness.server.id()).unwrap();
+    let mut reply = None;
+    for _ in 0..50 {
+        let replies =
+            session.get(&key).payload(bytes.to_vec()).timeout(std::time::Duration::from_secs(5)).await.unwrap();
+        if let Ok(answer) = replies.recv_async().await {
+            reply = Some(answer.result().expect("an ok reply").payload().to_bytes().into_owned());
+            break;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+    session.close().wait().ok();
+    decode(&reply.expect("the server answered")).expect("a reply that decodes")
+}
+
+fn raw_code(reply: &Reply) -> ErrorCode {
+    match &reply.body {
+        ReplyBody::Error(e) => e.code,
+        other => panic!("expected an error reply, got {other:?}"),
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_kind_of_bad_input_gets_its_coded_error_and_the_server_keeps_serving() {
+    let harness = common::start_with(arena_server::transport::Limits { max_envs: 3, ..Default::default() }).await;
+    let client = harness.client().await;
+    let mut env = harness.env(&client, "merge").await;
+    let stranger = ClientId(7);
+    let mut seen = Vec::new();
+
+    // 1-4: bytes that are not a request of this protocol.
+    seen.push(raw_code(&raw(&harness, b"\xff\xfe garbage \x00\x01").await));
+    let good = encode(&Request { version: PROTOCOL_VERSION, client: stranger, body: RequestBody::ServerInfo });
+    seen.push(raw_code(&raw(&harness, &good[..good.len() / 2 + 1]).await));
+    let mut from_the_future =
+        encode(&Request { version: PROTOCOL_VERSION + 1, client: stranger, body: RequestBody::ServerInfo });
+    seen.push(raw_code(&raw(&harness, &from_the_future).await));
+    from_the_future.resize(arena_protocol::MAX_MESSAGE_BYTES + 1, 0);
+    seen.push(raw_code(&raw(&harness, &from_the_future).await));
+    assert_eq!(
+        seen,
+        [ErrorCode::MalformedRequest, ErrorCode::MalformedRequest, ErrorCode::WrongVersion, ErrorCode::PayloadTooLarge]
+    );
+    assert!(matches!(raw(&harness, &good).await.body, ReplyBody::ServerInfo(_)), "still serving");
+
+    // 5-7: envs that do not exist or are not creatable.
+    let ghost = Request {
+        version: PROTOCOL_VERSION,
+        client: client.id(),
+        body: RequestBody::State { env: arena_protocol::EnvId(42) },
+    };
+    assert_eq!(raw_code(&raw(&harness, &encode(&ghost)).await), ErrorCode::UnknownEnv);
+    let unknown =
+        client.create_env(harness.server.id(), ScenarioSource::Named("nowhere".into()), CreateOptions::default()).await;
+    assert_eq!(code(unknown), ErrorCode::UnknownScenario);
+    let inline =
+        ScenarioSource::Inline { file_name: "mine.toml".into(), text: "name = \"x\"\n[road]\nlanes = 0\n".into() };
+    let bad_file = client.create_env(harness.server.id(), inline, CreateOptions::default()).await;
+    match bad_file {
+        Err(ClientError::Server(e)) => {
+            assert_eq!(e.code, ErrorCode::InvalidScenario);
+            assert!(e.message.contains("mine.toml"), "{}", e.message);
+        }
+        other => panic!("{other:?}"),
+    }
+    let bad_override =
+        CreateOptions { overrides: vec![("vehicle.ec.lane".into(), OptionValue::Int(9))], ..Default::default() };
+    let refused = client.create_env(harness.server.id(), ScenarioSource::Named("merge".into()), bad_override).await;
+    assert_eq!(code(refused), ErrorCode::InvalidScenario);
+
+    // 8-9: before reset.
+    assert_eq!(code(env.step(vec![]).await), ErrorCode::NotReset);
+    assert_eq!(code(env.state().await), ErrorCode::NotReset);
+    env.reset(Some(0), vec![]).await.unwrap();
+
+    // 10-14: actions.
+    assert_eq!(code(env.step(meta("nobody", 1)).await), ErrorCode::UnknownAgent);
+    assert_eq!(code(env.step(meta("ec", 7)).await), ErrorCode::InvalidAction);
+    assert_eq!(code(env.step(vec![("ec".into(), Action::Continuous([0.0, 1.0]))]).await), ErrorCode::WrongActionType);
+    let mut continuous = harness
+        .env_with(
+            &client,
+            "merge",
+            CreateOptions { action_type: Some(arena_protocol::ActionType::Continuous), ..Default::default() },
+        )
+        .await;
+    continuous.reset(Some(0), vec![]).await.unwrap();
+    assert_eq!(
+        code(continuous.step(vec![("ec".into(), Action::Continuous([f32::NAN, 0.0]))]).await),
+        ErrorCode::InvalidAction
+    );
+    assert_eq!(
+        code(continuous.step(vec![("ec".into(), Action::Continuous([50.0, 0.0]))]).await),
+        ErrorCode::InvalidAction
+    );
+
+    // 15: too many envs (limit 3: env, continuous, and one more).
+    let _third = harness.env(&client, "merge").await;
+    let fourth =
+        client.create_env(harness.server.id(), ScenarioSource::Named("merge".into()), CreateOptions::default()).await;
+    assert_eq!(code(fourth), ErrorCode::TooManyEnvs);
+
+    // 16-17: after close.
+    continuous.close().await.unwrap();
+    assert_eq!(code(continuous.step(vec![]).await), ErrorCode::EnvClosed);
+    let close_again =
+        Request { version: PROTOCOL_VERSION, client: client.id(), body: RequestBody::Close { env: continuous.id() } };
+    assert_eq!(raw_code(&raw(&harness, &encode(&close_again)).await), ErrorCode::EnvClosed);
+
+    // 18: a stale sequence number.
+    let step = env.step(meta("ec", 1)).await.unwrap();
+    assert_eq!(code(env.step_with_seq(step.seq - 1, vec![]).await), ErrorCode::StaleSequence);
+
+    // And a valid request still works after all of it.
+    let fine = env.step(meta("ec", 1)).await.unwrap();
+    assert_eq!(fine.agents, ["ec"]);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn envs_of_a_client_that_leaves_are_reclaimed() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let _env = harness.env(&client, "merge").await;
+    assert_eq!(harness.server.registry().len(), 1);
+    client.close().await.unwrap();
+    for _ in 0..200 {
+        if harness.server.registry().is_empty() {
+            return;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+    panic!("the env outlived its client");
+}

@@ -28,7 +28,8 @@ fn ten_minutes_of_dense_traffic_without_a_collision() {
     let mut world = scenario.build(11);
     let mut lane_changes = 0;
     let mut lanes: Vec<LaneId> = world.vehicles.iter().map(|v| v.target_lane).collect();
-    for _ in 0..60_000 {
+    let ticks = (600.0 / world.params.physics_dt).round() as usize;
+    for _ in 0..ticks {
         world.tick();
         for (lane, vehicle) in lanes.iter_mut().zip(&world.vehicles) {
             lane_changes += usize::from(*lane != vehicle.target_lane);

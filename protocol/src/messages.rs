@@ -147,6 +147,18 @@ pub struct CreateOptions {
     pub max_cycles: Option<u32>,
     /// (height, width) of `RgbArray` frames.
     pub render_size: Option<(u32, u32)>,
+    /// Add to every agent's info what the built-in game-theoretic AV would do in its
+    /// place, deciding with this game (`expert_action`, `expert_accel`, `expert_sigma`).
+    pub expert: Option<ExpertGame>,
+}
+
+/// The game the built-in AV plays when asked for `expert` infos.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ExpertGame {
+    /// Nash equilibrium, eq. (15)-(16).
+    Nash,
+    /// Stackelberg equilibrium, eq. (17)-(18).
+    Stackelberg,
 }
 
 /// A value of an option or override.

@@ -53,6 +53,7 @@ fn requests() -> Vec<RequestBody> {
                 observation: Some(ObservationKind::KinematicsWithMask),
                 max_cycles: Some(9),
                 render_size: Some((10, 20)),
+                expert: Some(ExpertGame::Stackelberg),
             },
         },
         RequestBody::CreateEnv {

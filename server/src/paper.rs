@@ -64,7 +64,7 @@ impl PaperScenario {
     /// the paper, plus the 4 s change), and the paper's figure span in B.
     pub fn duration(self) -> f64 {
         match self {
-            PaperScenario::A => 12.0,
+            PaperScenario::A => 16.0,
             PaperScenario::B => 10.0,
         }
     }

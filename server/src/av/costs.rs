@@ -34,8 +34,11 @@ pub struct CostParams {
     /// l_v of eq. (11c)/(12c) (m): subtracted from the centre distance; one car length. 5.
     pub car_length: f64,
     /// A car ahead counts as the lead car of eq. (14) (v-bar = min(v_max, v_LC)) only while
-    /// its gap (centre to centre) is below this (m). 30. Taken literally, eq. (14) makes
-    /// following any slow car, however far, cost nothing (DESIGN.md).
+    /// its gap (centre to centre) is below this (m). 0, chosen here: the cap is off and
+    /// v-bar = v_max. Taken literally, eq. (14) makes following a slow car cost nothing, so
+    /// no style overtakes in Scenario B, and the paper's own Table VII (the conservative
+    /// car, which follows LC, has the largest efficiency cost) is consistent only with
+    /// v-bar = v_max (docs/parameters.md).
     pub lead_range: f64,
 }
 
@@ -50,7 +53,7 @@ impl Default for CostParams {
             kappa_ay: 10.0,
             epsilon: 1e-3,
             car_length: 5.0,
-            lead_range: 30.0,
+            lead_range: 0.0,
         }
     }
 }
@@ -104,13 +107,22 @@ pub fn gap(p: &CostParams, a: Kinematics, b: Kinematics) -> f64 {
     ((a.s - b.s).hypot(a.d - b.d) - p.car_length).max(0.0) // eq. (11c), (12c)
 }
 
+/// The gap term kappa / (gap^2 + epsilon) of eq. (11a)/(12a). Where the gap is clamped
+/// at zero the term is multiplied by 1 + the penetration (m), so that a deeper predicted
+/// overlap still costs more and braking harder before an unavoidable contact still pays.
+#[inline]
+fn proximity(p: &CostParams, kappa: f64, a: Kinematics, b: Kinematics) -> f64 {
+    let distance = (a.s - b.s).hypot(a.d - b.d) - p.car_length; // eq. (11c), (12c)
+    let gap = distance.max(0.0);
+    kappa / (gap * gap + p.epsilon) * (1.0 + (-distance).max(0.0))
+}
+
 /// J_ds-log of eq. (11): closing speed on the lead car `leader` and the gap to it.
 #[inline]
 pub fn longitudinal_safety(p: &CostParams, ego: Kinematics, leader: Kinematics) -> f64 {
     let dv = leader.speed - ego.speed; // eq. (11b)
     let lambda = if dv < 0.0 { 1.0 } else { 0.0 }; // eq. (12d) under (11)
-    let gap = gap(p, ego, leader);
-    p.kappa_v_log * lambda * dv * dv + p.kappa_s_log / (gap * gap + p.epsilon) // eq. (11a)
+    p.kappa_v_log * lambda * dv * dv + proximity(p, p.kappa_s_log, ego, leader) // eq. (11a)
 }
 
 /// J_ds-lat of eq. (12) between the ego car and the adjacent car of the target lane.
@@ -123,8 +135,7 @@ pub fn lateral_safety(p: &CostParams, ego: Kinematics, adjacent: Kinematics) -> 
     let (front, rear) = if ego.s >= adjacent.s { (ego, adjacent) } else { (adjacent, ego) };
     let dv = front.speed - rear.speed; // eq. (12b), see above
     let lambda = if dv < 0.0 { 1.0 } else { 0.0 }; // eq. (12d)
-    let gap = gap(p, ego, adjacent);
-    p.kappa_v_lat * lambda * dv * dv + p.kappa_s_lat / (gap * gap + p.epsilon) // eq. (12a)
+    p.kappa_v_lat * lambda * dv * dv + proximity(p, p.kappa_s_lat, ego, adjacent) // eq. (12a)
 }
 
 /// J_ds of eq. (10): the longitudinal term when keeping the lane, the lateral one when
@@ -191,12 +202,13 @@ mod tests {
     }
 
     #[test]
-    fn overlapping_cars_cost_the_most() {
+    fn overlapping_cars_cost_the_most_and_more_the_deeper() {
         let p = CostParams::default();
         let touching = lateral_safety(&p, car(0.0, 0.0, 20.0), car(5.0, 0.0, 20.0));
         let overlapping = lateral_safety(&p, car(0.0, 0.0, 20.0), car(1.0, 0.0, 20.0));
-        assert_eq!(touching, overlapping);
         assert!((touching - p.kappa_s_lat / p.epsilon).abs() < 1e-6);
+        assert!((overlapping - p.kappa_s_lat / p.epsilon * 5.0).abs() < 1e-6);
+        assert_eq!(gap(&p, car(0.0, 0.0, 20.0), car(1.0, 0.0, 20.0)), 0.0);
     }
 
     #[test]
@@ -214,6 +226,8 @@ mod tests {
         let p = CostParams::default();
         let ego = car(0.0, 0.0, 20.0);
         assert_eq!(target_speed(&p, ego, 30.0, None), 30.0);
+        assert_eq!(target_speed(&p, ego, 30.0, Some(car(20.0, 0.0, 15.0))), 30.0, "the cap is off by default");
+        let p = CostParams { lead_range: 30.0, ..p };
         assert_eq!(target_speed(&p, ego, 30.0, Some(car(20.0, 0.0, 15.0))), 15.0);
         assert_eq!(target_speed(&p, ego, 30.0, Some(car(p.lead_range + 1.0, 0.0, 15.0))), 30.0);
         assert_eq!(target_speed(&p, ego, 30.0, Some(car(-5.0, 0.0, 15.0))), 30.0);

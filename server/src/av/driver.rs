@@ -310,13 +310,14 @@ fn partner(world: &World, id: VehicleId, params: &AvParams) -> Option<VehicleId>
         .map(|(other, _)| other)
 }
 
-/// What a leader (or learner) is doing: its decision if it is a `gt` leader, else its
-/// commanded acceleration and the lane change it is making.
+/// What a leader (or learner) is doing: its last decision if it is a `gt` leader, else
+/// its commanded acceleration; and the lane change it is making or has just decided.
 fn observed(world: &World, id: VehicleId) -> (f64, i8) {
     let vehicle = world.vehicle(id);
+    let under_way = changing(world, id);
     match &vehicle.driver {
-        Driver::Gt(gt) => (gt.decision.accel, gt.decision.sigma),
-        _ => (vehicle.command.accel, changing(world, id)),
+        Driver::Gt(gt) => (gt.decision.accel, if under_way != 0 { under_way } else { gt.decision.sigma }),
+        _ => (vehicle.command.accel, under_way),
     }
 }
 

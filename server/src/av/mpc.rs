@@ -33,10 +33,12 @@ pub struct MpcParams {
     pub lateral_weight: f64,
     /// Q's weight on y_3, the heading error to the lane (1/rad^2). 30, chosen here.
     pub heading_weight: f64,
-    /// R of eq. (26), on each Delta Y_p (1/m^2). 4, chosen here.
+    /// R of eq. (26), on each Delta Y_p (1/m^2). 10, chosen here: with `max_step` a 4 m
+    /// lane change takes about 4 s and peaks at 1.5–2.1 m/s^2 sideways (tested).
     pub rate_weight: f64,
     /// Delta u_max of eq. (27) (m per step): the preview point moves at most this per
-    /// control period. 0.5, chosen here (5 m/s sideways).
+    /// control period. 0.15, chosen here (1.5 m/s sideways), matching the 4 s quintic the
+    /// games predict with.
     pub max_step: f64,
     /// u_min, u_max of eq. (27): Y_p stays within the road's outer lane centres widened
     /// by this (m). 2, chosen here (to the road's edges).
@@ -54,8 +56,8 @@ impl Default for MpcParams {
             field_weight: 20.0,
             lateral_weight: 1.0,
             heading_weight: 30.0,
-            rate_weight: 4.0,
-            max_step: 0.5,
+            rate_weight: 10.0,
+            max_step: 0.15,
             preview_margin: 2.0,
             min_speed: 2.0,
         }

@@ -82,7 +82,9 @@ fn gt(game: Game, role: Role) -> Driver {
 fn world_with(road: Road, cars: &[(&str, u32, f64, f64, Style, Driver)]) -> World {
     let mut world = World::new(road.clone(), WorldParams::default(), 0);
     for (name, lane, s, speed, style, driver) in cars {
-        world.add(Vehicle::new(name, &road, LaneId(*lane), *s, *speed, *style, driver.clone()));
+        let mut vehicle = Vehicle::new(name, &road, LaneId(*lane), *s, *speed, *style, driver.clone());
+        vehicle.target_speed = road.speed_limit(LaneId(*lane)); // everyone aims for the limit
+        world.add(vehicle);
     }
     world
 }
@@ -102,11 +104,12 @@ fn styles_choose_their_acceleration_on_an_open_road() {
 
 #[test]
 fn a_car_alongside_blocks_the_change_and_an_empty_lane_takes_it() {
-    // A stopped car 30 m ahead in the middle lane; lane 0 has a car alongside, lane 2 is empty.
+    // A stopped car 60 m ahead in the middle lane (braking at 4 m/s^2 stops in 50 m); lane 0
+    // has a car alongside, lane 2 is empty.
     let stopped = Driver::Agent(AgentCommand::Direct(crate::dynamics::Command { accel: 0.0, preview: -4.0 }));
     let cars = [
         ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
-        ("stop", 1, 130.0, 0.0, Style::Normal, stopped),
+        ("stop", 1, 160.0, 0.0, Style::Normal, stopped),
         ("beside", 0, 101.0, 20.0, Style::Normal, Driver::Idm),
     ];
     for game in Game::ALL {
@@ -150,7 +153,7 @@ fn stage_cost_switches_terms_with_the_lane_change() {
     let gap = 25.0 - c.car_length;
     let expected = c.kappa_v_log * 25.0 + c.kappa_s_log / (gap * gap + c.epsilon);
     assert!((keeping.safety - expected).abs() < 1e-9, "{keeping:?}");
-    assert!(keeping.efficiency == 25.0, "lead car within range: v-bar = 15");
+    assert!(keeping.efficiency == 25.0, "v-bar is the limit, 25");
     world.change_lane(VehicleId(0), LaneId(0));
     let changing = stage_cost(&world, VehicleId(0));
     let lateral_gap = (100.0f64 + 16.0).sqrt() - c.car_length;

@@ -63,6 +63,17 @@ fn speed_index(target: f64) -> usize {
         .unwrap_or(0)
 }
 
+/// The meta action closest to an acceleration and a lane change (sigma -1 = left).
+pub fn meta_equivalent(accel: f64, sigma: i8) -> u32 {
+    match sigma {
+        -1 => LANE_LEFT,
+        1 => LANE_RIGHT,
+        _ if accel > 0.5 => FASTER,
+        _ if accel < -0.5 => SLOWER,
+        _ => 1,
+    }
+}
+
 /// Drives `id` with `action`; a missing action keeps the lane and the speed.
 pub fn apply(world: &mut World, id: VehicleId, action: Option<&Action>, kind: ActionType) {
     match (kind, action) {

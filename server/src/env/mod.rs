@@ -10,9 +10,10 @@ mod observation;
 mod render;
 mod reward;
 
+use arena_protocol::InfoValue;
 use arena_protocol::{
-    Action, ActionType, CreateOptions, EnvSpecs, ErrorCode, ErrorReply, Frame, Info, Observation, ObservationKind,
-    OptionValue, RenderMode, Space,
+    Action, ActionType, CreateOptions, EnvSpecs, ErrorCode, ErrorReply, ExpertGame, Frame, Info, Observation,
+    ObservationKind, OptionValue, RenderMode, Space,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -60,6 +61,7 @@ pub struct Env {
     observation: ObservationKind,
     max_cycles: u32,
     render_size: (u32, u32),
+    expert: Option<crate::av::Game>,
     seeds: ChaCha8Rng,
     world: Option<World>,
     agents: Vec<AgentSlot>,
@@ -102,6 +104,10 @@ impl Env {
             observation: options.observation.unwrap_or(ObservationKind::Kinematics),
             max_cycles,
             render_size,
+            expert: options.expert.map(|game| match game {
+                ExpertGame::Nash => crate::av::Game::Nash,
+                ExpertGame::Stackelberg => crate::av::Game::Stackelberg,
+            }),
             seeds: ChaCha8Rng::seed_from_u64(entropy),
             world: None,
             agents,
@@ -158,7 +164,9 @@ impl Env {
             .iter()
             .map(|agent| {
                 let observation = observation::observe(self.observation, &world, agent.vehicle, agent.action);
-                (agent.name.clone(), observation, reward::info(&world, agent.vehicle, None))
+                let mut info = reward::info(&world, agent.vehicle, None);
+                add_expert(self.expert, &mut info, &world, agent);
+                (agent.name.clone(), observation, info)
             })
             .collect();
         self.world = Some(world);
@@ -212,13 +220,17 @@ impl Env {
             let crashed_now = driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
             let terminated = vehicle.status != Status::Driving;
             let reward = -costs[k].weighted - if crashed_now { COLLISION_PENALTY } else { 0.0 };
+            let mut info = reward::info(world, agent.vehicle, Some(&costs[k]));
+            if !terminated {
+                add_expert(self.expert, &mut info, world, agent);
+            }
             results.push(AgentStep {
                 agent: agent.name.clone(),
                 observation: observation::observe(self.observation, world, agent.vehicle, agent.action),
                 reward,
                 terminated,
                 truncated: truncated && !terminated,
-                info: reward::info(world, agent.vehicle, Some(&costs[k])),
+                info,
             });
         }
         for (k, &i) in live_before.iter().enumerate() {
@@ -249,6 +261,24 @@ impl Env {
     pub fn action_space(&self, agent: &str) -> Option<Space> {
         self.agents.iter().find(|a| a.name == agent).map(|a| action::space(a.action, &self.scenario))
     }
+}
+
+/// On request, what the built-in AV would do in the agent's place: `expert_action` in
+/// the agent's own action space (for meta agents: a lane change when the game
+/// changes lanes, else faster/slower/idle by the sign of its acceleration beyond
+/// ±0.5 m/s^2), and the game's raw `expert_accel` and `expert_sigma`.
+fn add_expert(expert: Option<crate::av::Game>, info: &mut Info, world: &World, agent: &AgentSlot) {
+    let Some(game) = expert else { return };
+    let decision = crate::av::expert_decision(world, agent.vehicle, game);
+    let action = match agent.action {
+        ActionType::Meta => InfoValue::I64(i64::from(action::meta_equivalent(decision.accel, decision.sigma))),
+        ActionType::Continuous => {
+            InfoValue::F64s(vec![decision.accel, -f64::from(decision.sigma) * world.road.lane_width()])
+        }
+    };
+    info.values.push(("expert_action".to_string(), action));
+    info.values.push(("expert_accel".to_string(), InfoValue::F64(decision.accel)));
+    info.values.push(("expert_sigma".to_string(), InfoValue::I64(i64::from(decision.sigma))));
 }
 
 #[cfg(test)]

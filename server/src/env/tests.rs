@@ -152,3 +152,30 @@ fn renders_show_the_road() {
     assert_eq!(text.matches('@').count(), 1);
     assert_eq!(text.lines().filter(|l| l.starts_with('-')).count(), 4, "{text}");
 }
+
+#[test]
+fn expert_infos_say_what_the_built_in_av_would_do() {
+    let options = CreateOptions { expert: Some(arena_protocol::ExpertGame::Stackelberg), ..CreateOptions::default() };
+    let mut env = env("merge", options);
+    let value = |info: &Info, key: &str| info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
+    let reset = env.reset(Some(0), &[]);
+    let step = env.step(&[]).unwrap();
+    for info in [&reset[0].2, &step[0].info] {
+        let Some(InfoValue::I64(action)) = value(info, "expert_action") else { panic!("{info:?}") };
+        let Some(InfoValue::I64(sigma)) = value(info, "expert_sigma") else { panic!("{info:?}") };
+        assert!((0..5).contains(&action) && (-1..=1).contains(&sigma));
+        // EC's lane (1) ends; the only way to change lanes is left.
+        assert!(sigma <= 0 && action != 2, "sigma {sigma}, action {action}");
+        let expected = i64::from(action::meta_equivalent(
+            match value(info, "expert_accel") {
+                Some(InfoValue::F64(a)) => a,
+                other => panic!("{other:?}"),
+            },
+            sigma as i8,
+        ));
+        assert_eq!(action, expected);
+    }
+    let plain =
+        super::Env::new(builtin("merge").unwrap().unwrap(), &CreateOptions::default(), 1).unwrap().reset(Some(0), &[]);
+    assert!(value(&plain[0].2, "expert_action").is_none(), "only on request");
+}

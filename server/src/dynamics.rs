@@ -358,10 +358,11 @@ pub fn fixed_steer_derivative(x: &Vector8, accel: f64, curvature: f64, vehicle: 
 pub fn rk4(x: &Vector8, dt: f64, f: impl Fn(&Vector8) -> Vector8) -> Vector8 {
     let offset = |k: &Vector8, h: f64| std::array::from_fn(|i| x[i] + h * k[i]);
     let k1 = f(x);
-    let k2 = f(&offset(&k1, dt / 2.0));
-    let k3 = f(&offset(&k2, dt / 2.0));
+    let (half, sixth) = (dt * 0.5, dt * (1.0 / 6.0));
+    let k2 = f(&offset(&k1, half));
+    let k3 = f(&offset(&k2, half));
     let k4 = f(&offset(&k3, dt));
-    std::array::from_fn(|i| x[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+    std::array::from_fn(|i| x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
 }
 
 /// Advances a vehicle by one physics step with the driver model closing the loop.
@@ -374,16 +375,36 @@ pub fn step(
     vehicle: &VehicleParams,
     driver: &DriverParams,
 ) -> VehicleState {
-    let x0 = state.to_array();
-    let start = Angles::of(x0[3], x0[6]);
-    let model = Model::new(vehicle, driver);
-    let x = rk4(&x0, dt, |x| {
-        let angles = start.near(x[3], x0[3], x[6], x0[6]);
-        derivative_at(x, angles, command, curvature, &model)
-    });
-    let mut next = VehicleState::from_array(x);
-    next.vx = next.vx.max(0.0);
-    next
+    Stepper::new(vehicle, driver, dt).step(state, command, curvature)
+}
+
+/// `step` with the constants of f prepared once, for a world that steps many vehicles
+/// of the same kind every tick.
+#[derive(Debug, Clone, Copy)]
+pub struct Stepper {
+    model: Model,
+    dt: f64,
+}
+
+impl Stepper {
+    /// Prepares the step of a `vehicle` with `driver` over `dt`.
+    pub fn new(vehicle: &VehicleParams, driver: &DriverParams, dt: f64) -> Stepper {
+        Stepper { model: Model::new(vehicle, driver), dt }
+    }
+
+    /// One RK4 step of eq. (7)-(8).
+    #[inline]
+    pub fn step(&self, state: &VehicleState, command: Command, curvature: f64) -> VehicleState {
+        let x0 = state.to_array();
+        let start = Angles::of(x0[3], x0[6]);
+        let x = rk4(&x0, self.dt, |x| {
+            let angles = start.near(x[3], x0[3], x[6], x0[6]);
+            derivative_at(x, angles, command, curvature, &self.model)
+        });
+        let mut next = VehicleState::from_array(x);
+        next.vx = next.vx.max(0.0);
+        next
+    }
 }
 
 /// The continuous-time linearisation of eq. (22)–(23) around (x_t, u_t), plus the

@@ -35,8 +35,8 @@ impl Default for Limits {
 struct Slot {
     env: Env,
     owner: ClientId,
-    /// The last mutating request's sequence number and its encoded reply.
-    last: Option<(u64, Vec<u8>)>,
+    /// The last mutating request's sequence number and its reply.
+    last: Option<(u64, ReplyBody)>,
     last_used: Instant,
 }
 
@@ -114,10 +114,6 @@ fn error(code: ErrorCode, message: impl Into<String>, env_usable: bool) -> Error
     ErrorReply { code, message: message.into(), env_usable }
 }
 
-fn reply(body: ReplyBody) -> Reply {
-    Reply { version: PROTOCOL_VERSION, body }
-}
-
 fn to_toml(value: &OptionValue) -> toml::Value {
     match value {
         OptionValue::Bool(b) => toml::Value::Boolean(*b),
@@ -151,13 +147,11 @@ impl Registry {
 
     /// Answers one request, given as the bytes that arrived.
     pub fn handle(&self, bytes: &[u8]) -> Vec<u8> {
-        match self.answer(bytes) {
-            Ok(encoded) => encoded,
-            Err(err) => encode(&reply(ReplyBody::Error(err))),
-        }
+        let body = self.answer(bytes).unwrap_or_else(ReplyBody::Error);
+        encode(&Reply { version: PROTOCOL_VERSION, body })
     }
 
-    fn answer(&self, bytes: &[u8]) -> Result<Vec<u8>, ErrorReply> {
+    fn answer(&self, bytes: &[u8]) -> Result<ReplyBody, ErrorReply> {
         if bytes.len() > MAX_MESSAGE_BYTES {
             return Err(error(
                 ErrorCode::PayloadTooLarge,
@@ -174,7 +168,7 @@ impl Registry {
         }
         let client = request.client;
         match request.body {
-            RequestBody::ServerInfo => Ok(encode(&reply(ReplyBody::ServerInfo(self.info())))),
+            RequestBody::ServerInfo => Ok(ReplyBody::ServerInfo(self.info())),
             RequestBody::CreateEnv { scenario, options } => self.create(client, scenario, &options),
             RequestBody::Reset { env, seq, seed, options } => self.sequenced(client, env, seq, |slot| {
                 let outcome = slot.env.reset(seed, &options);
@@ -189,9 +183,7 @@ impl Registry {
             RequestBody::Step { env, seq, actions } => {
                 self.sequenced(client, env, seq, |slot| step_reply(&mut slot.env, seq, &actions).map(ReplyBody::Step))
             }
-            RequestBody::StepBatch { steps } => {
-                Ok(encode(&reply(ReplyBody::StepBatch(self.step_batch(client, &steps)))))
-            }
+            RequestBody::StepBatch { steps } => Ok(ReplyBody::StepBatch(self.step_batch(client, &steps))),
             RequestBody::Render { env, mode } => {
                 self.with_env(client, env, |slot| slot.env.render(mode).map(ReplyBody::Render))
             }
@@ -212,7 +204,12 @@ impl Registry {
         }
     }
 
-    fn create(&self, owner: ClientId, source: ScenarioSource, options: &CreateOptions) -> Result<Vec<u8>, ErrorReply> {
+    fn create(
+        &self,
+        owner: ClientId,
+        source: ScenarioSource,
+        options: &CreateOptions,
+    ) -> Result<ReplyBody, ErrorReply> {
         let overrides: Vec<(String, toml::Value)> =
             options.overrides.iter().map(|(k, v)| (k.clone(), to_toml(v))).collect();
         let (file, text) = match &source {
@@ -244,7 +241,7 @@ impl Registry {
         }
         let slot = Slot { env, owner, last: None, last_used: Instant::now() };
         envs.insert(id, Arc::new(Mutex::new(slot)));
-        Ok(encode(&reply(ReplyBody::Created { env: id, specs })))
+        Ok(ReplyBody::Created { env: id, specs })
     }
 
     fn slot(&self, client: ClientId, env: EnvId) -> Result<Arc<Mutex<Slot>>, ErrorReply> {
@@ -264,11 +261,11 @@ impl Registry {
         client: ClientId,
         env: EnvId,
         f: impl FnOnce(&mut Slot) -> Result<ReplyBody, ErrorReply>,
-    ) -> Result<Vec<u8>, ErrorReply> {
+    ) -> Result<ReplyBody, ErrorReply> {
         let slot = self.slot(client, env)?;
         let mut slot = lock(&slot);
         slot.last_used = Instant::now();
-        f(&mut slot).map(|body| encode(&reply(body)))
+        f(&mut slot)
     }
 
     /// Runs a mutating request once per sequence number: a retry of the last one gets
@@ -279,7 +276,7 @@ impl Registry {
         env: EnvId,
         seq: u64,
         f: impl FnOnce(&mut Slot) -> Result<ReplyBody, ErrorReply>,
-    ) -> Result<Vec<u8>, ErrorReply> {
+    ) -> Result<ReplyBody, ErrorReply> {
         let slot = self.slot(client, env)?;
         let mut slot = lock(&slot);
         slot.last_used = Instant::now();
@@ -294,25 +291,25 @@ impl Registry {
             }
             _ => {}
         }
-        let encoded = match f(&mut slot) {
-            Ok(body) => encode(&reply(body)),
-            Err(err) => encode(&reply(ReplyBody::Error(err))),
-        };
-        slot.last = Some((seq, encoded.clone()));
-        Ok(encoded)
+        let body = f(&mut slot).unwrap_or_else(ReplyBody::Error);
+        slot.last = Some((seq, body.clone()));
+        Ok(body)
     }
 
     fn step_batch(&self, client: ClientId, steps: &[BatchStep]) -> Vec<BatchItem> {
         let one = |step: &BatchStep| -> BatchItem {
-            let encoded = self.sequenced(client, step.env, step.seq, |slot| {
+            let body = self.sequenced(client, step.env, step.seq, |slot| {
                 step_reply(&mut slot.env, step.seq, &step.actions).map(ReplyBody::Step)
             });
-            match encoded
-                .and_then(|bytes| decode::<Reply>(&bytes).map_err(|e| error(ErrorCode::Internal, e.to_string(), true)))
-            {
-                Ok(Reply { body: ReplyBody::Step(step), .. }) => BatchItem::Ok(step),
-                Ok(Reply { body: ReplyBody::Error(err), .. }) | Err(err) => BatchItem::Err(err),
-                Ok(other) => BatchItem::Err(error(ErrorCode::Internal, format!("unexpected reply {other:?}"), true)),
+            match body {
+                Ok(ReplyBody::Step(step)) => BatchItem::Ok(step),
+                Ok(ReplyBody::Error(err)) | Err(err) => BatchItem::Err(err),
+                // The seq last answered a reset of this env: report it, step nothing.
+                Ok(_) => BatchItem::Err(error(
+                    ErrorCode::StaleSequence,
+                    format!("sequence number {} was used by a reset of this env", step.seq),
+                    true,
+                )),
             }
         };
         let workers = std::thread::available_parallelism().map_or(1, |n| n.get()).min(steps.len().max(1));
@@ -323,15 +320,24 @@ impl Registry {
         std::thread::scope(|scope| {
             let handles: Vec<_> =
                 steps.chunks(chunk).map(|part| scope.spawn(move || part.iter().map(one).collect::<Vec<_>>())).collect();
-            handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
+            handles
+                .into_iter()
+                .zip(steps.chunks(chunk))
+                .flat_map(|(handle, part)| {
+                    handle.join().unwrap_or_else(|_| {
+                        let bug = error(ErrorCode::Internal, "a batch worker panicked; this is a server bug", false);
+                        vec![BatchItem::Err(bug); part.len()]
+                    })
+                })
+                .collect()
         })
     }
 
-    fn close(&self, client: ClientId, env: EnvId) -> Result<Vec<u8>, ErrorReply> {
+    fn close(&self, client: ClientId, env: EnvId) -> Result<ReplyBody, ErrorReply> {
         self.slot(client, env)?;
         lock(&self.envs).remove(&env);
         lock(&self.closed).insert(env);
-        Ok(encode(&reply(ReplyBody::Closed)))
+        Ok(ReplyBody::Closed)
     }
 
     /// Closes every env of `client` (its liveliness token is gone); returns how many.

@@ -1,0 +1,69 @@
+//! The `arena-server` binary itself: it serves on the endpoint it is given, answers a
+//! request over a real Zenoh session, and shuts down cleanly on SIGTERM.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use arena_protocol::session::{ConnectionFlags, Role};
+use arena_protocol::{ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys};
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map(|a| a.port()).expect("a free port")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn serves_then_stops_on_sigterm() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let mut server = Command::new(env!("CARGO_BIN_EXE_arena-server"))
+        .args(["--listen", &endpoint, "--max-envs", "4"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start arena-server");
+    let mut lines = BufReader::new(server.stdout.take().expect("stdout")).lines();
+    let banner = lines.next().expect("a first line").expect("utf-8");
+    assert!(banner.contains(&format!("serving on {endpoint}")), "{banner}");
+    let server_id =
+        banner.split("server id ").nth(1).and_then(|rest| rest.split(')').next()).expect("an id").to_string();
+
+    let flags = ConnectionFlags::connecting_to(&endpoint);
+    let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
+    let request = encode(&Request { version: PROTOCOL_VERSION, client: ClientId(1), body: RequestBody::ServerInfo });
+    let key = keys::server_rpc("arena", &server_id).unwrap();
+    let mut info = None;
+    for _ in 0..100 {
+        let replies = session.get(&key).payload(request.clone()).timeout(Duration::from_secs(5)).await.unwrap();
+        if let Ok(reply) = replies.recv_async().await {
+            let bytes = reply.result().expect("ok reply").payload().to_bytes().into_owned();
+            info = Some(decode::<Reply>(&bytes).expect("a reply"));
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    match info.expect("the server answered").body {
+        ReplyBody::ServerInfo(info) => {
+            assert_eq!((info.server_id.as_str(), info.max_envs, info.envs), (server_id.as_str(), 4, 0));
+            assert_eq!(info.scenarios, ["highway", "merge", "overtake"]);
+        }
+        other => panic!("{other:?}"),
+    }
+    session.close().await.unwrap();
+
+    let killed = Command::new("kill").args(["-TERM", &server.id().to_string()]).status().expect("kill");
+    assert!(killed.success());
+    let status = server.wait().expect("exit");
+    assert!(status.success(), "arena-server exited with {status}");
+    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    assert!(rest.iter().any(|line| line.contains("shutting down")), "{rest:?}");
+}
+
+#[test]
+fn bad_flags_are_refused_with_a_message() {
+    let output = Command::new(env!("CARGO_BIN_EXE_arena-server")).args(["--idle-timeout", "0"]).output().expect("run");
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("--idle-timeout must be a positive number of seconds"), "{stderr}");
+    let output = Command::new(env!("CARGO_BIN_EXE_arena-server")).args(["--prefix", "a*b"]).output().expect("run");
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("cannot be used in a key expression"));
+}

@@ -101,7 +101,34 @@ pub struct Registry {
     scenarios: Scenarios,
     limits: Limits,
     envs: Mutex<HashMap<EnvId, Arc<Mutex<Slot>>>>,
-    closed: Mutex<HashSet<EnvId>>,
+    closed: Mutex<Tombstones>,
+}
+
+/// Ids of recently closed envs, so a late request gets `EnvClosed` rather than
+/// `UnknownEnv`; bounded, oldest forgotten first, so a long-lived server does not grow.
+#[derive(Default)]
+struct Tombstones {
+    ids: HashSet<EnvId>,
+    order: std::collections::VecDeque<EnvId>,
+}
+
+impl Tombstones {
+    const CAPACITY: usize = 1 << 16;
+
+    fn insert(&mut self, id: EnvId) {
+        if self.ids.insert(id) {
+            self.order.push_back(id);
+        }
+        while self.order.len() > Self::CAPACITY {
+            if let Some(old) = self.order.pop_front() {
+                self.ids.remove(&old);
+            }
+        }
+    }
+
+    fn contains(&self, id: &EnvId) -> bool {
+        self.ids.contains(id)
+    }
 }
 
 fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -132,7 +159,13 @@ fn to_toml(value: &OptionValue) -> toml::Value {
 impl Registry {
     /// An empty registry for server `server_id`.
     pub fn new(server_id: String, scenarios: Scenarios, limits: Limits) -> Registry {
-        Registry { server_id, scenarios, limits, envs: Mutex::new(HashMap::new()), closed: Mutex::new(HashSet::new()) }
+        Registry {
+            server_id,
+            scenarios,
+            limits,
+            envs: Mutex::new(HashMap::new()),
+            closed: Mutex::new(Tombstones::default()),
+        }
     }
 
     /// How many envs are alive.

@@ -5,56 +5,47 @@
 //!   the envs of a client whose token disappears);
 //! - `<prefix>/<server_id>/rpc`: the queryable that answers every `Request`;
 //! - `<prefix>/<server_id>/echo`: replies with as many bytes as asked (benchmarks).
+//!
+//! A prefix is one or more non-empty chunks separated by '/' (`arena`, `site/a`); an id
+//! is one chunk. Neither may contain Zenoh's special characters `*`, `$`, `#`, `?`.
 
-use std::fmt;
+use crate::error::KeyError;
 
 /// The prefix used when none is given.
 pub const DEFAULT_PREFIX: &str = "arena";
 
-/// Occurs when a prefix or id cannot be part of a key expression.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct KeyError {
-    /// The offending text.
-    pub text: String,
-    /// Why it cannot be used.
-    pub reason: &'static str,
-}
-
-impl fmt::Display for KeyError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "'{}' cannot be used in a key expression: {}", self.text, self.reason)
-    }
-}
-
-impl std::error::Error for KeyError {}
-
-fn check(text: &str, allow_slash: bool) -> Result<(), KeyError> {
-    let fail = |reason| Err(KeyError { text: text.to_string(), reason });
+fn check(text: &str, what: &str, allow_slash: bool) -> Result<(), KeyError> {
+    let fail = |reason: String| Err(KeyError { text: text.to_string(), reason });
     if text.is_empty() {
-        return fail("it is empty");
+        return fail(format!("the {what} is empty"));
     }
-    if text.contains(['*', '$', '#', '?']) {
-        return fail("it contains one of * $ # ?");
-    }
-    if text.starts_with('/') || text.ends_with('/') || text.contains("//") {
-        return fail("it has an empty chunk ('/' at an end or doubled)");
+    if let Some(c) = text.chars().find(|c| matches!(c, '*' | '$' | '#' | '?')) {
+        return fail(format!("the {what} contains '{c}', which Zenoh reserves for wildcards"));
     }
     if !allow_slash && text.contains('/') {
-        return fail("ids cannot contain '/'");
+        return fail(format!("the {what} contains '/'; an id is a single chunk"));
+    }
+    if text.starts_with('/') || text.ends_with('/') || text.contains("//") {
+        return fail(format!("the {what} has an empty chunk (a '/' at either end, or '//')"));
     }
     Ok(())
 }
 
-/// Checks a prefix (may contain '/').
+/// Checks a prefix: non-empty chunks separated by '/', no `* $ # ?`.
 pub fn check_prefix(prefix: &str) -> Result<(), KeyError> {
-    check(prefix, true)
+    check(prefix, "prefix", true)
+}
+
+/// Checks an id (server or client): one non-empty chunk, no `/ * $ # ?`.
+pub fn check_id(id: &str) -> Result<(), KeyError> {
+    check(id, "id", false)
 }
 
 fn join(prefix: &str, parts: &[&str]) -> Result<String, KeyError> {
     check_prefix(prefix)?;
     let mut key = prefix.to_string();
     for part in parts {
-        check(part, false)?;
+        check_id(part)?;
         key.push('/');
         key.push_str(part);
     }
@@ -66,7 +57,7 @@ pub fn server_liveliness(prefix: &str, server_id: &str) -> Result<String, KeyErr
     join(prefix, &["servers", server_id])
 }
 
-/// `<prefix>/servers/*`.
+/// `<prefix>/servers/*`: every server's liveliness token.
 pub fn servers_liveliness_wildcard(prefix: &str) -> Result<String, KeyError> {
     Ok(join(prefix, &["servers"])? + "/*")
 }
@@ -76,32 +67,32 @@ pub fn client_liveliness(prefix: &str, client_id: &str) -> Result<String, KeyErr
     join(prefix, &["clients", client_id])
 }
 
-/// `<prefix>/clients/*`.
+/// `<prefix>/clients/*`: every client's liveliness token.
 pub fn clients_liveliness_wildcard(prefix: &str) -> Result<String, KeyError> {
     Ok(join(prefix, &["clients"])? + "/*")
 }
 
-/// `<prefix>/<server_id>/rpc`.
+/// `<prefix>/<server_id>/rpc`: the queryable that answers every `Request`.
 pub fn server_rpc(prefix: &str, server_id: &str) -> Result<String, KeyError> {
     join(prefix, &[server_id, "rpc"])
 }
 
-/// `<prefix>/<server_id>/echo`.
+/// `<prefix>/<server_id>/echo`: raw replies of a requested size, for benchmarks.
 pub fn server_echo(prefix: &str, server_id: &str) -> Result<String, KeyError> {
     join(prefix, &[server_id, "echo"])
 }
 
 fn id_after(prefix: &str, kind: &str, key: &str) -> Option<String> {
     let rest = key.strip_prefix(prefix)?.strip_prefix('/')?.strip_prefix(kind)?.strip_prefix('/')?;
-    check(rest, false).ok().map(|_| rest.to_string())
+    check_id(rest).ok().map(|()| rest.to_string())
 }
 
-/// The server id of a `<prefix>/servers/<server_id>` key.
+/// The server id of a `<prefix>/servers/<server_id>` key, or `None` for any other key.
 pub fn server_id_from_liveliness(prefix: &str, key: &str) -> Option<String> {
     id_after(prefix, "servers", key)
 }
 
-/// The client id of a `<prefix>/clients/<client_id>` key.
+/// The client id of a `<prefix>/clients/<client_id>` key, or `None` for any other key.
 pub fn client_id_from_liveliness(prefix: &str, key: &str) -> Option<String> {
     id_after(prefix, "clients", key)
 }
@@ -111,22 +102,53 @@ mod tests {
     use super::*;
 
     #[test]
-    fn builders_and_parsers_agree() {
-        assert_eq!(server_liveliness("arena", "ab12").unwrap(), "arena/servers/ab12");
-        assert_eq!(server_rpc("site/a", "ab12").unwrap(), "site/a/ab12/rpc");
+    fn builders_make_the_documented_keys() {
+        assert_eq!(server_liveliness(DEFAULT_PREFIX, "ab12").unwrap(), "arena/servers/ab12");
         assert_eq!(servers_liveliness_wildcard("arena").unwrap(), "arena/servers/*");
-        assert_eq!(server_id_from_liveliness("arena", "arena/servers/ab12").as_deref(), Some("ab12"));
+        assert_eq!(client_liveliness("arena", "77").unwrap(), "arena/clients/77");
+        assert_eq!(clients_liveliness_wildcard("site/a").unwrap(), "site/a/clients/*");
+        assert_eq!(server_rpc("site/a", "ab12").unwrap(), "site/a/ab12/rpc");
+        assert_eq!(server_echo("arena", "ab12").unwrap(), "arena/ab12/echo");
+    }
+
+    #[test]
+    fn parsers_invert_the_builders_and_refuse_other_keys() {
+        let key = server_liveliness("site/a", "ab12").unwrap();
+        assert_eq!(server_id_from_liveliness("site/a", &key).as_deref(), Some("ab12"));
         assert_eq!(client_id_from_liveliness("arena", "arena/clients/77").as_deref(), Some("77"));
-        assert_eq!(server_id_from_liveliness("arena", "other/servers/ab12"), None);
-        assert_eq!(server_id_from_liveliness("arena", "arena/servers/a/b"), None);
+        for key in [
+            "other/servers/ab12",
+            "arenax/servers/ab12",
+            "arena/clients/ab12",
+            "arena/servers/a/b",
+            "arena/servers/",
+            "arena/servers",
+            "arena/servers/*",
+        ] {
+            assert_eq!(server_id_from_liveliness("arena", key), None, "{key}");
+        }
     }
 
     #[test]
     fn bad_prefixes_and_ids_are_refused_with_a_reason() {
-        for (prefix, reason) in [("", "empty"), ("a*", "* $ # ?"), ("/a", "empty chunk"), ("a//b", "empty chunk")] {
+        for (prefix, reason) in [
+            ("", "the prefix is empty"),
+            ("a*", "contains '*'"),
+            ("a$b", "contains '$'"),
+            ("#", "contains '#'"),
+            ("a?", "contains '?'"),
+            ("/a", "empty chunk"),
+            ("a/", "empty chunk"),
+            ("a//b", "empty chunk"),
+        ] {
             let err = server_rpc(prefix, "x").unwrap_err();
             assert!(err.to_string().contains(reason), "{prefix}: {err}");
+            assert_eq!(err.text, prefix);
         }
-        assert!(server_rpc("arena", "a/b").unwrap_err().to_string().contains("'/'"));
+        for (id, reason) in [("", "the id is empty"), ("a/b", "contains '/'"), ("*", "contains '*'")] {
+            let err = server_liveliness("arena", id).unwrap_err();
+            assert!(err.to_string().contains(reason), "{id}: {err}");
+        }
+        assert!(check_prefix("site/a").is_ok() && check_id("0123abcd").is_ok());
     }
 }

@@ -1,21 +1,33 @@
 //! The wire protocol of highway-arena: every request and reply a client and an
 //! `arena-server` exchange over Zenoh, the codec that turns them into bytes, the key
 //! expressions they travel on, and the space specs that map one-to-one onto Gymnasium
-//! spaces.
+//! spaces. It depends on nothing of the server; a client needs only this crate (and
+//! docs/protocol.md describes the same bytes for clients in other languages).
 //!
 //! - [`Request`] / [`Reply`]: envelopes that carry [`PROTOCOL_VERSION`] first, then a
-//!   [`RequestBody`] or [`ReplyBody`].
-//! - [`encode`] / [`decode`]: the only place bytes are made (bincode 2, standard config,
-//!   with a size limit), so the codec is one file to change.
-//! - [`keys`]: key-expression builders; nothing else formats keys.
+//!   [`RequestBody`] (server info, create, reset, step, step batch, render, state,
+//!   specs, close) or a [`ReplyBody`].
+//! - [`encode`] / [`decode`] / [`peek_version`]: the only place bytes are made (bincode
+//!   2, standard config, with a [`MAX_MESSAGE_BYTES`] limit), so the codec is one file to
+//!   change; [`DecodeError`] says whether bytes were too large, trailing or malformed.
+//! - [`keys`]: key-expression builders and parsers; nothing else formats keys.
 //! - [`Space`]: Box, Discrete and Dict specs, with checks for observations and actions.
-//! - [`ErrorReply`]: a coded error, a message for people, and whether the env survives.
+//! - [`ErrorReply`]: a stable [`ErrorCode`], a message for people, and whether the env
+//!   survives.
+//! - `session` (feature `session`): connection flags turned into a `zenoh::Config`.
 //!
 //! ```
-//! use arena_protocol::{ClientId, PROTOCOL_VERSION, Request, RequestBody, decode, encode};
-//! let request = Request { version: PROTOCOL_VERSION, client: ClientId(1), body: RequestBody::ServerInfo };
-//! let bytes = encode(&request);
-//! assert_eq!(decode::<Request>(&bytes).unwrap(), request);
+//! use arena_protocol::{Action, ClientId, EnvId, Request, RequestBody, decode, encode, keys, peek_version};
+//!
+//! let rpc = keys::server_rpc(keys::DEFAULT_PREFIX, "0123abcd").unwrap();
+//! assert_eq!(rpc, "arena/0123abcd/rpc");
+//!
+//! let step = RequestBody::Step { env: EnvId(7), seq: 1, actions: vec![("ego".into(), Action::Meta(3))] };
+//! let request = Request::new(ClientId(1), step);
+//! let bytes = encode(&request); // the payload of a Zenoh `get` on `rpc`
+//! assert_eq!(peek_version(&bytes), Some(arena_protocol::PROTOCOL_VERSION));
+//! assert_eq!(decode::<Request>(&bytes), Ok(request));
+//! assert!(decode::<Request>(&bytes[..3]).is_err());
 //! ```
 #![warn(missing_docs)]
 
@@ -27,10 +39,10 @@ mod messages;
 pub mod session;
 mod spaces;
 
-pub use codec::{DecodeError, MAX_MESSAGE_BYTES, decode, encode, peek_version};
-pub use error::{ErrorCode, ErrorReply};
+pub use codec::{MAX_MESSAGE_BYTES, decode, encode, peek_version};
+pub use error::{DecodeError, ErrorCode, ErrorReply, KeyError};
 pub use messages::*;
 pub use spaces::{DType, Space};
 
-/// The protocol version every message carries; bumped on any incompatible change.
+/// The protocol version every message carries first; bumped on any incompatible change.
 pub const PROTOCOL_VERSION: u16 = 1;

@@ -45,6 +45,13 @@ pub struct Request {
     pub body: RequestBody,
 }
 
+impl Request {
+    /// A request of this crate's `PROTOCOL_VERSION`.
+    pub fn new(client: ClientId, body: RequestBody) -> Request {
+        Request { version: crate::PROTOCOL_VERSION, client, body }
+    }
+}
+
 /// The requests.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum RequestBody {
@@ -206,9 +213,10 @@ pub const META_SLOWER: u32 = 4;
 /// One agent's action.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Action {
-    /// A meta action, 0..5.
+    /// A meta action of Discrete(5): `META_LANE_LEFT` .. `META_SLOWER`.
     Meta(u32),
-    /// [acceleration, preview offset].
+    /// [acceleration (m/s^2), lateral preview target (m, offset from the current lane's
+    /// centre, positive to the left)], fed to the driver model.
     Continuous([f32; 2]),
 }
 
@@ -228,6 +236,13 @@ pub struct Reply {
     pub version: u16,
     /// The answer.
     pub body: ReplyBody,
+}
+
+impl Reply {
+    /// A reply of this crate's `PROTOCOL_VERSION`.
+    pub fn new(body: ReplyBody) -> Reply {
+        Reply { version: crate::PROTOCOL_VERSION, body }
+    }
 }
 
 /// The replies.
@@ -429,4 +444,221 @@ pub enum Frame {
     },
     /// A text picture.
     Ansi(String),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::PROTOCOL_VERSION;
+    use crate::codec::{decode, encode, peek_version};
+    use crate::error::ErrorCode;
+    use crate::spaces::DType;
+
+    fn observation() -> Observation {
+        Observation::Dict(vec![
+            ("action_mask".into(), Tensor::new(vec![5], TensorData::I8(vec![1, 1, 0, 1, 0])).unwrap()),
+            ("observation".into(), Tensor::new(vec![2, 2], TensorData::F32(vec![0.5, -0.25, 1.0, 0.0])).unwrap()),
+        ])
+    }
+
+    fn specs() -> EnvSpecs {
+        let space = Space::Box { low: vec![-1.0; 4], high: vec![1.0; 4], shape: vec![2, 2], dtype: DType::F32 };
+        EnvSpecs {
+            possible_agents: vec!["ego".into(), "b".into()],
+            observation_spaces: vec![("ego".into(), space.clone()), ("b".into(), space.clone())],
+            action_spaces: vec![
+                ("ego".into(), Space::Discrete { n: 5, start: 0 }),
+                (
+                    "b".into(),
+                    Space::Box { low: vec![-6.0, -4.0], high: vec![6.0, 4.0], shape: vec![2], dtype: DType::F32 },
+                ),
+            ],
+            state_space: Space::Dict(vec![("x".into(), space)]),
+            dt: 0.1,
+            max_cycles: 200,
+            render_fps: 10,
+            render_modes: vec![RenderMode::RgbArray, RenderMode::Ansi],
+        }
+    }
+
+    fn step_reply() -> StepReply {
+        StepReply {
+            seq: 3,
+            observations: vec![
+                ("ego".into(), observation()),
+                ("b".into(), Observation::Tensor(Tensor::new(vec![1], TensorData::I64(vec![-9])).unwrap())),
+            ],
+            rewards: vec![("ego".into(), -1.5), ("b".into(), 0.25)],
+            terminations: vec![("ego".into(), false), ("b".into(), true)],
+            truncations: vec![("ego".into(), true), ("b".into(), false)],
+            infos: vec![
+                (
+                    "ego".into(),
+                    Info {
+                        values: vec![
+                            ("cost".into(), InfoValue::F64(2.0)),
+                            ("crashed".into(), InfoValue::Bool(true)),
+                            ("style".into(), InfoValue::Str("normal".into())),
+                            ("lane".into(), InfoValue::I64(1)),
+                            ("expert_action".into(), InfoValue::F64s(vec![0.5, -1.0])),
+                        ],
+                    },
+                ),
+                ("b".into(), Info::default()),
+            ],
+            agents: vec![],
+        }
+    }
+
+    fn requests() -> Vec<RequestBody> {
+        let env = EnvId(0xdead_beef_u128 << 64 | 7);
+        vec![
+            RequestBody::ServerInfo,
+            RequestBody::CreateEnv {
+                scenario: ScenarioSource::Named("merge".into()),
+                options: CreateOptions {
+                    overrides: vec![
+                        ("vehicle.ac.speed".into(), OptionValue::Float(18.0)),
+                        ("x".into(), OptionValue::Str("y".into())),
+                    ],
+                    action_type: Some(ActionType::Continuous),
+                    observation: Some(ObservationKind::KinematicsWithMask),
+                    max_cycles: Some(9),
+                    render_size: Some((10, 20)),
+                    expert: Some(ExpertGame::Stackelberg),
+                },
+            },
+            RequestBody::CreateEnv {
+                scenario: ScenarioSource::Inline { file_name: "a.toml".into(), text: "name = 'a'".into() },
+                options: CreateOptions {
+                    action_type: Some(ActionType::Meta),
+                    observation: Some(ObservationKind::Kinematics),
+                    expert: Some(ExpertGame::Nash),
+                    ..CreateOptions::default()
+                },
+            },
+            RequestBody::CreateEnv { scenario: ScenarioSource::Named("x".into()), options: CreateOptions::default() },
+            RequestBody::Reset {
+                env,
+                seq: 1,
+                seed: Some(42),
+                options: vec![("k".into(), OptionValue::Bool(true)), ("i".into(), OptionValue::Int(-3))],
+            },
+            RequestBody::Reset { env, seq: u64::MAX, seed: None, options: vec![] },
+            RequestBody::Step {
+                env,
+                seq: 2,
+                actions: vec![("ego".into(), Action::Meta(META_FASTER)), ("b".into(), Action::Continuous([0.5, -1.0]))],
+            },
+            RequestBody::StepBatch {
+                steps: vec![
+                    BatchStep { env, seq: 4, actions: vec![] },
+                    BatchStep { env: EnvId(1), seq: 5, actions: vec![("ego".into(), Action::Meta(0))] },
+                ],
+            },
+            RequestBody::Render { env, mode: RenderMode::RgbArray },
+            RequestBody::Render { env, mode: RenderMode::Ansi },
+            RequestBody::State { env },
+            RequestBody::Specs { env },
+            RequestBody::Close { env },
+        ]
+    }
+
+    fn replies() -> Vec<ReplyBody> {
+        let error = ErrorReply { code: ErrorCode::InvalidAction, message: "component 0".into(), env_usable: true };
+        vec![
+            ReplyBody::ServerInfo(ServerInfo {
+                server_id: "s".into(),
+                version: "0.1.0".into(),
+                protocol: 1,
+                scenarios: vec!["merge".into(), "overtake".into()],
+                envs: 2,
+                max_envs: 9,
+            }),
+            ReplyBody::Created { env: EnvId(5), specs: specs() },
+            ReplyBody::Reset(ResetReply {
+                seq: 1,
+                observations: vec![("ego".into(), observation())],
+                infos: vec![("ego".into(), Info::default())],
+            }),
+            ReplyBody::Step(step_reply()),
+            ReplyBody::StepBatch(vec![BatchItem::Ok(step_reply()), BatchItem::Err(error.clone())]),
+            ReplyBody::Render(Frame::Rgb { height: 1, width: 2, pixels: vec![1, 2, 3, 4, 5, 6] }),
+            ReplyBody::Render(Frame::Ansi("..@..".into())),
+            ReplyBody::State(observation()),
+            ReplyBody::State(Observation::Tensor(Tensor::new(vec![1, 2], TensorData::U8(vec![0, 255])).unwrap())),
+            ReplyBody::Specs(specs()),
+            ReplyBody::Closed,
+            ReplyBody::Error(error),
+        ]
+    }
+
+    #[test]
+    fn every_request_round_trips_and_leads_with_its_version() {
+        for body in requests() {
+            for version in [PROTOCOL_VERSION, 250, 251, u16::MAX] {
+                let request = Request { version, client: ClientId(u128::MAX), body: body.clone() };
+                let bytes = encode(&request);
+                assert_eq!(decode::<Request>(&bytes).as_ref(), Ok(&request));
+                assert_eq!(peek_version(&bytes), Some(version), "{request:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_reply_round_trips_and_leads_with_its_version() {
+        for body in replies() {
+            for version in [PROTOCOL_VERSION, 300] {
+                let reply = Reply { version, body: body.clone() };
+                let bytes = encode(&reply);
+                assert_eq!(decode::<Reply>(&bytes).as_ref(), Ok(&reply));
+                assert_eq!(peek_version(&bytes), Some(version), "{reply:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_variant_is_covered_by_the_round_trips() {
+        // Variant indexes in the fixtures: requests 0..=8, replies 0..=9 (the byte after
+        // the one-byte version and, for requests, the client id).
+        let request_variants: std::collections::BTreeSet<u8> =
+            requests().into_iter().map(|body| encode(&Request::new(ClientId(1), body))[2]).collect();
+        assert_eq!(request_variants, (0..=8).collect());
+        let reply_variants: std::collections::BTreeSet<u8> =
+            replies().into_iter().map(|body| encode(&Reply::new(body))[1]).collect();
+        assert_eq!(reply_variants, (0..=9).collect());
+    }
+
+    #[test]
+    fn a_request_for_the_wrong_envelope_does_not_decode_as_it() {
+        // A Reply is not a Request: the decoder must not silently accept it.
+        let bytes = encode(&Reply::new(ReplyBody::Closed));
+        assert!(decode::<Request>(&bytes).is_err());
+    }
+
+    #[test]
+    fn ids_print_and_parse_as_32_hex_digits() {
+        let id = EnvId(0xabc);
+        assert_eq!(id.to_string(), "00000000000000000000000000000abc");
+        assert_eq!(id.to_string().parse::<EnvId>(), Ok(id));
+        let max = ClientId(u128::MAX);
+        assert_eq!(max.to_string(), "f".repeat(32));
+        assert_eq!(max.to_string().parse::<ClientId>(), Ok(max));
+        assert!("xyz".parse::<ClientId>().is_err());
+        assert!("1".repeat(33).parse::<EnvId>().is_err(), "more than 128 bits");
+    }
+
+    #[test]
+    fn tensors_refuse_a_shape_that_disagrees_with_their_data() {
+        assert!(Tensor::new(vec![2, 3], TensorData::F32(vec![0.0; 6])).is_some());
+        assert!(Tensor::new(vec![3], TensorData::F32(vec![0.0; 2])).is_none());
+        assert!(Tensor::new(vec![], TensorData::U8(vec![7])).is_some(), "a scalar has one element");
+        assert!(Tensor::new(vec![u32::MAX, u32::MAX, u32::MAX], TensorData::U8(vec![])).is_none(), "overflow");
+        assert!(Tensor::new(vec![0, 4], TensorData::I64(vec![])).is_some());
+    }
+
+    #[test]
+    fn meta_action_constants_follow_the_documented_order() {
+        assert_eq!([META_LANE_LEFT, META_IDLE, META_LANE_RIGHT, META_FASTER, META_SLOWER], [0, 1, 2, 3, 4]);
+    }
 }

@@ -68,7 +68,7 @@ fn progress(json: bool, message: &str) {
 
 /// Runs `arena bench`.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
-    if args.round_trips == 0 || !(args.batch_seconds > 0.0) {
+    if args.round_trips == 0 || !(args.batch_seconds.is_finite() && args.batch_seconds > 0.0) {
         anyhow::bail!("--round-trips must be at least 1 and --batch-seconds positive");
     }
     let client = Client::connect(&args.connection).context("cannot connect")?;

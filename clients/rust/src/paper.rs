@@ -13,11 +13,9 @@ use arena_server::paper::{self, PaperOptions, PaperScenario, Record, Trace};
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
-/// Arguments of `arena paper`.
+/// Arguments of `arena paper` (the subcommand's help line is in main.rs: it runs the
+/// world in process, no server needed).
 #[derive(Debug, clap::Args)]
-#[command(long_about = "Runs the paper's Scenario A (merge) and B (overtake) for the three driving styles \
-and both games, in process (no server needed), prints the counterparts of Tables IV-VII beside the \
-paper's values and writes speed and gap plots as PNG.")]
 pub struct PaperArgs {
     /// Also write every figure of the tables as JSON to this file.
     #[arg(long)]
@@ -91,7 +89,7 @@ fn tables(runs: &[Run]) -> String {
             PaperScenario::A => ("IV", "V", "x 10^5"),
             PaperScenario::B => ("VI", "VII", "x 10^4"),
         };
-        let _ = writeln!(out, "\nScenario {} ({}): Table {decision}, ours | paper", scenario.name(), scenario.file());
+        let _ = writeln!(out, "\nScenario {} ({}): Table {decision}, ours | paper\n", scenario.name(), scenario.file());
         let _ =
             writeln!(out, "| style | figure | NE ours | NE paper | SE ours | SE paper |\n|---|---|---|---|---|---|");
         for style in Style::ALL {
@@ -119,13 +117,23 @@ fn tables(runs: &[Run]) -> String {
                 let theirs = [&ne_ref, &se_ref].map(|r| r.speeds.iter().find(|(k, _)| k == role).map(|(_, v)| *v));
                 row(&format!("v {role} (m/s)"), ours, theirs);
             }
-            let side = |r: &Run| Some(f64::from(r.record.lane_change));
-            row("lane change", [side(ne), side(se)], [None, None]);
-            let crash = |r: &Run| Some(if r.record.collision { 1.0 } else { 0.0 });
-            row("collision", [crash(ne), crash(se)], [None, None]);
+            let (side, crash) =
+                (|r: &Run| r.record.lane_change, |r: &Run| if r.record.collision { "yes" } else { "no" });
+            let paper_side = match (scenario, style) {
+                (PaperScenario::B, Style::Conservative) => "0",
+                _ => "-1",
+            };
+            let _ = writeln!(
+                out,
+                "| {} | lane change | {} | {paper_side} | {} | {paper_side} |",
+                style.name(),
+                side(ne),
+                side(se)
+            );
+            let _ = writeln!(out, "| {} | collision | {} | no | {} | no |", style.name(), crash(ne), crash(se));
         }
         let _ =
-            writeln!(out, "\nScenario {}: Table {costs}, RMS of EC's costs, ours | paper ({scale})", scenario.name());
+            writeln!(out, "\nScenario {}: Table {costs}, RMS of EC's costs, ours | paper ({scale})\n", scenario.name());
         let _ = writeln!(out, "| style | cost | NE ours | NE paper | SE ours | SE paper | SE/NE ours | SE/NE paper |");
         let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
         for style in Style::ALL {
@@ -150,7 +158,8 @@ fn tables(runs: &[Run]) -> String {
 
 const COLOURS: [RGBColor; 4] = [RGBColor(200, 30, 30), RGBColor(30, 80, 200), RGBColor(20, 150, 60), BLACK];
 
-/// Speed (top) and gap (bottom) against time for one run, t_c marked.
+/// Speed (top) and gap (bottom) against time for one run, t_c marked; each car keeps its
+/// colour in both panels.
 fn plot(run: &Run, file: &Path) -> anyhow::Result<()> {
     let root = BitMapBackend::new(file, (900, 700)).into_drawing_area();
     root.fill(&WHITE)?;
@@ -165,9 +174,9 @@ fn plot(run: &Run, file: &Path) -> anyhow::Result<()> {
     let gaps: Vec<Vec<(f64, f64)>> =
         (0..run.trace.roles.len() - 1).map(|i| samples.iter().map(|s| (s.t, s.gaps[i])).collect()).collect();
     let names: Vec<String> = run.trace.roles.iter().map(|r| format!("v {r}")).collect();
-    panel(&top, "speed (m/s)", t_end, &speeds, &names, t_c)?;
+    panel(&top, "speed (m/s)", t_end, &speeds, &names, 0, t_c)?;
     let names: Vec<String> = run.trace.roles[1..].iter().map(|r| format!("gap EC-{r}")).collect();
-    panel(&bottom, "gap (m), EC ahead > 0", t_end, &gaps, &names, t_c)?;
+    panel(&bottom, "gap (m), EC ahead > 0", t_end, &gaps, &names, 1, t_c)?;
     root.present()?;
     Ok(())
 }
@@ -178,6 +187,7 @@ fn panel(
     t_end: f64,
     series: &[Vec<(f64, f64)>],
     names: &[String],
+    first_colour: usize,
     t_c: Option<f64>,
 ) -> anyhow::Result<()> {
     let values = series.iter().flatten().map(|&(_, v)| v);
@@ -188,9 +198,9 @@ fn panel(
         .x_label_area_size(35)
         .y_label_area_size(55)
         .build_cartesian_2d(0.0..t_end, (low - pad)..(high + pad))?;
-    chart.configure_mesh().x_desc("t (s)").y_desc(y_label).draw()?;
+    chart.configure_mesh().light_line_style(WHITE).x_desc("t (s)").y_desc(y_label).draw()?;
     for (k, (points, name)) in series.iter().zip(names).enumerate() {
-        let colour = COLOURS[k % COLOURS.len()];
+        let colour = COLOURS[(k + first_colour) % COLOURS.len()];
         chart
             .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))?
             .label(name.as_str())

@@ -100,21 +100,23 @@ impl Mul<f64> for CostComponents {
     }
 }
 
-/// The gap of eq. (11c)/(12c): centre distance less l_v, never below zero (past that the
-/// cars overlap, and the inverse square must not fall again).
+/// Delta s of eq. (11c)/(12c): the centre distance less l_v (negative when the cars'
+/// l_v-long footprints overlap).
 #[inline]
-pub fn gap(p: &CostParams, a: Kinematics, b: Kinematics) -> f64 {
-    ((a.s - b.s).hypot(a.d - b.d) - p.car_length).max(0.0) // eq. (11c), (12c)
+pub fn separation(p: &CostParams, a: Kinematics, b: Kinematics) -> f64 {
+    let (ds, dd) = (a.s - b.s, a.d - b.d);
+    (ds * ds + dd * dd).sqrt() - p.car_length // eq. (11c), (12c)
 }
 
-/// The gap term kappa / (gap^2 + epsilon) of eq. (11a)/(12a). Where the gap is clamped
-/// at zero the term is multiplied by 1 + the penetration (m), so that a deeper predicted
-/// overlap still costs more and braking harder before an unavoidable contact still pays.
+/// The gap term kappa / (Delta s^2 + epsilon) of eq. (11a)/(12a), with Delta s clamped at
+/// zero (past that the inverse square would fall again as the overlap deepens) and the
+/// term multiplied by 1 + the overlap (m), so that a deeper predicted overlap still costs
+/// more and braking harder before an unavoidable contact still pays.
 #[inline]
 fn proximity(p: &CostParams, kappa: f64, a: Kinematics, b: Kinematics) -> f64 {
-    let distance = (a.s - b.s).hypot(a.d - b.d) - p.car_length; // eq. (11c), (12c)
-    let gap = distance.max(0.0);
-    kappa / (gap * gap + p.epsilon) * (1.0 + (-distance).max(0.0))
+    let separation = separation(p, a, b);
+    let gap = separation.max(0.0);
+    kappa / (gap * gap + p.epsilon) * (1.0 + (-separation).max(0.0))
 }
 
 /// J_ds-log of eq. (11): closing speed on the lead car `leader` and the gap to it.
@@ -208,7 +210,7 @@ mod tests {
         let overlapping = lateral_safety(&p, car(0.0, 0.0, 20.0), car(1.0, 0.0, 20.0));
         assert!((touching - p.kappa_s_lat / p.epsilon).abs() < 1e-6);
         assert!((overlapping - p.kappa_s_lat / p.epsilon * 5.0).abs() < 1e-6);
-        assert_eq!(gap(&p, car(0.0, 0.0, 20.0), car(1.0, 0.0, 20.0)), 0.0);
+        assert_eq!(separation(&p, car(0.0, 0.0, 20.0), car(1.0, 0.0, 20.0)), -4.0);
     }
 
     #[test]

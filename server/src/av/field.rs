@@ -92,7 +92,8 @@ pub fn obstacle_field(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> f64 {
     let q = along + y * y / (2.0 * p.rho_y * p.rho_y);
     let k = if x < 0.0 { -1.0 } else { 1.0 };
     let gamma = if q > 1e-12 { k * along / q.sqrt() } else { 0.0 };
-    let theta = -q.powf(p.shape) + p.speed_skew * oc.speed * gamma;
+    let shaped = if p.shape == 1.0 { q } else { q.powf(p.shape) };
+    let theta = -shaped + p.speed_skew * oc.speed * gamma;
     p.obstacle_peak * theta.exp() // eq. (20)
 }
 

@@ -139,8 +139,8 @@ impl PayoffTable {
         let mut least = (f64::INFINITY, 0, 0);
         for row in 0..self.rows {
             let ac_best = self.ac(row, self.best_reply(row));
-            for col in 0..self.cols {
-                let regret = (self.ec(row, col) - ec_best[col]).max(self.ac(row, col) - ac_best);
+            for (col, &best_ec) in ec_best.iter().enumerate() {
+                let regret = (self.ec(row, col) - best_ec).max(self.ac(row, col) - ac_best);
                 if regret < least.0 {
                     least = (regret, row, col);
                 }
@@ -308,10 +308,12 @@ impl Situation {
         LateralPath { from: self.ego.now.d, to: option.centre, start: 0.0, duration: p.lane_change_time * remaining }
     }
 
-    /// EC's actions for the game of side `side` (-1 or +1).
+    /// EC's actions for the game of side `side` (-1 or +1). A lane change under way
+    /// binds only while its lane is still an option.
     fn ec_actions(&self, side: i8, params: &GameParams) -> Vec<(f64, i8)> {
-        let sigmas: &[i8] = match self.committed {
-            Some(c) if c == side && self.option(side).is_some() => &[side][..],
+        let committed = self.committed.filter(|&c| self.option(c).is_some());
+        let sigmas: &[i8] = match committed {
+            Some(c) if c == side => &[side][..],
             Some(_) => &[],
             None if self.option(side).is_some() => &[0, side][..],
             None => &[0][..],
@@ -348,11 +350,30 @@ impl Situation {
         let samples = self.samples(&ec_actions, &ac_actions, option.as_ref(), params);
         let (rows, cols) = (ec_actions.len(), ac_actions.len());
         let mut table = PayoffTable { rows, cols, ec: vec![0.0; rows * cols], ac: vec![0.0; rows * cols] };
+        // While EC keeps its lane, its cost does not depend on AC's action nor AC's on
+        // EC's: one column per row and one row of AC costs serve all those rows.
+        let mut keeping: Option<Vec<f64>> = None;
         for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
-            for (col, &ac_accel) in ac_actions.iter().enumerate() {
+            let entry = |col: usize| {
+                let ac_accel = ac_actions[col];
                 let (ec, ac) = self.entry(&samples, row, col, accel, sigma, ac_accel, option.as_ref(), params);
-                table.ec[row * cols + col] = ec.weighted_by(&self.ego.weights);
-                table.ac[row * cols + col] = ac;
+                (ec.weighted_by(&self.ego.weights), ac)
+            };
+            let cells = &mut table.ec[row * cols..(row + 1) * cols];
+            let replies = &mut table.ac[row * cols..(row + 1) * cols];
+            match (sigma, &keeping) {
+                (0, Some(alone)) => {
+                    cells.fill(entry(0).0);
+                    replies.copy_from_slice(alone);
+                }
+                _ => {
+                    for col in 0..cols {
+                        (cells[col], replies[col]) = entry(col);
+                    }
+                    if sigma == 0 {
+                        keeping = Some(replies.to_vec());
+                    }
+                }
             }
         }
         SideGame { ec_actions, ac_actions, table, option }
@@ -430,8 +451,14 @@ impl Situation {
             } else {
                 (samples.lead_side.get(k).copied(), ac.filter(|ac| ac.s >= ego.s))
             };
-            let lateral = ac.map_or(0.0, |ac| costs::lateral_safety(c, ego, ac));
-            let longitudinal = samples.leader.get(k).map_or(0.0, |&leader| costs::longitudinal_safety(c, ego, leader));
+            let lateral = match (sigma, ac) {
+                (0, _) | (_, None) => 0.0,
+                (_, Some(ac)) => costs::lateral_safety(c, ego, ac),
+            };
+            let longitudinal = match sigma {
+                0 => samples.leader.get(k).map_or(0.0, |&leader| costs::longitudinal_safety(c, ego, leader)),
+                _ => 0.0, // eq. (10): (sigma^2 - 1)^2 = 0
+            };
             let limit = target.speed_limit;
             let v_bar = costs::target_speed(c, ego, limit, lead).min(costs::target_speed(c, ego, limit, ec_lead_extra));
             ec_sum = ec_sum
@@ -463,7 +490,10 @@ impl Situation {
         lateral: f64,
         c: &CostParams,
     ) -> f64 {
-        let longitudinal = samples.ac_leader.get(k).map_or(0.0, |&leader| costs::longitudinal_safety(c, ac, leader));
+        let longitudinal = match sigma {
+            0 => samples.ac_leader.get(k).map_or(0.0, |&leader| costs::longitudinal_safety(c, ac, leader)),
+            _ => 0.0, // eq. (10): (sigma^2 - 1)^2 = 0
+        };
         let limit = adj.player.bounds.max;
         let mut v_bar = costs::target_speed(c, ac, limit, samples.ac_lead.get(k).copied());
         if sigma != 0 {

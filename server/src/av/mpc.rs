@@ -148,30 +148,31 @@ pub fn build_qp(problem: &MpcProblem, params: &MpcParams) -> Qp {
     nominal.resize(n, 0.0);
 
     let mut x = SVector::<f64, STATES>::from(problem.state.to_array());
+    // d x(k) / d Delta u(j), one column per increment.
     let mut sens = vec![SVector::<f64, STATES>::zeros(); n];
     let (mut p, mut q) = (DMatrix::<f64>::zeros(n, n), DVector::<f64>::zeros(n));
-    let weights = [params.field_weight, params.lateral_weight, params.heading_weight];
+    let mut gain = DVector::<f64>::zeros(n);
+    let mut add = |gain: &DVector<f64>, constant: f64, weight: f64| {
+        p.ger(weight, gain, gain, 1.0); // eq. (26), ||y||_Q^2
+        q.axpy(constant * weight, gain, 1.0);
+    };
     for k in 0..params.prediction_horizon {
         x = disc.a * x + b_y * u_prev + drift; // eq. (24) with u(k) = u(k-1) + sum of Delta u
         for (j, column) in sens.iter_mut().enumerate() {
             *column = disc.a * *column + if j <= k { b_y } else { SVector::zeros() };
         }
         let t = (k + 1) as f64 * problem.dt;
-        let row = |i: usize| DVector::from_iterator(n, sens.iter().map(|c| c[i]));
-        let (s_row, d_row, heading_row) = (row(4), row(5), row(3));
-        let nominal_s = x[4] + s_row.dot(&DVector::from_column_slice(&nominal));
-        let nominal_d = x[5] + d_row.dot(&DVector::from_column_slice(&nominal));
+        let along = |i: usize| sens.iter().zip(&nominal).map(|(c, z)| c[i] * z).sum::<f64>();
+        let (nominal_s, nominal_d) = (x[4] + along(4), x[5] + along(5));
         let (value, grad_s, grad_d) = problem.field.gradient(nominal_s, nominal_d, t);
         // y_1 linearised at the nominal path; y_2, y_3 exact in the linear model.
-        let outputs = [
-            (&s_row * grad_s + &d_row * grad_d, value + grad_s * (x[4] - nominal_s) + grad_d * (x[5] - nominal_d)),
-            (d_row, x[5] - problem.target),
-            (heading_row, x[3]),
-        ];
-        for ((gain, constant), weight) in outputs.iter().zip(weights) {
-            p += gain * gain.transpose() * weight; // eq. (26), ||y||_Q^2
-            q += gain * (constant * weight);
-        }
+        gain.iter_mut().zip(&sens).for_each(|(g, c)| *g = grad_s * c[4] + grad_d * c[5]);
+        let field = value + grad_s * (x[4] - nominal_s) + grad_d * (x[5] - nominal_d);
+        add(&gain, field, params.field_weight);
+        gain.iter_mut().zip(&sens).for_each(|(g, c)| *g = c[5]);
+        add(&gain, x[5] - problem.target, params.lateral_weight);
+        gain.iter_mut().zip(&sens).for_each(|(g, c)| *g = c[3]);
+        add(&gain, x[3], params.heading_weight);
     }
     for i in 0..n {
         p[(i, i)] += params.rate_weight; // eq. (26), ||Delta u||_R^2
@@ -255,7 +256,7 @@ impl Mpc {
     /// Solves eq. (27) and returns eq. (28)–(29), or why it could not.
     pub fn solve(&mut self, problem: &MpcProblem, params: &MpcParams) -> Result<MpcSolution, MpcError> {
         let (low, high) = problem.preview_bounds;
-        if !(low <= high) {
+        if low.partial_cmp(&high).is_none_or(|order| order.is_gt()) {
             return Err(MpcError::Setup(format!("empty preview bounds [{low}, {high}]")));
         }
         let target = problem.target.clamp(low, high);

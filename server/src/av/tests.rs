@@ -194,3 +194,51 @@ fn gt_worlds_are_deterministic_and_plain_data() {
     assert!(a == clone, "a clone stepped alike differs");
     assert!(a.vehicles.iter().all(|v| v.status == Status::Driving));
 }
+
+#[test]
+fn defaults_are_the_documented_ones() {
+    // docs/parameters.md, "Game-theoretic AV": change both together.
+    let p = AvParams::default();
+    let c = p.decision.costs;
+    assert_eq!(
+        [c.kappa_v_log, c.kappa_s_log, c.kappa_v_lat, c.kappa_s_lat, c.kappa_ax, c.kappa_ay, c.epsilon, c.car_length],
+        [0.1, 1.5e4, 2.0, 3e4, 10.0, 10.0, 1e-3, 5.0]
+    );
+    assert_eq!(c.lead_range, 0.0);
+    let (pr, g) = (p.decision.prediction, p.decision.game);
+    assert_eq!((pr.horizon, pr.samples, pr.lane_change_time), (3.0, 6, 4.0));
+    assert_eq!(
+        [g.accel_min, g.accel_max, g.accel_step, g.speed_min, g.follower_tolerance],
+        [-4.0, 3.0, 0.25, 0.0, 0.0]
+    );
+    let f = p.field;
+    assert_eq!(
+        [f.obstacle_peak, f.rho_x, f.rho_y, f.shape, f.speed_skew, f.edge_peak, f.line_peak, f.safety_threshold],
+        [1.0, 6.0, 1.2, 1.0, 0.05, 0.2, 0.05, 0.3]
+    );
+    assert_eq!((f.width, f.range), (2.0, 80.0));
+    let m = p.mpc;
+    assert_eq!((m.prediction_horizon, m.control_horizon), (25, 10));
+    assert_eq!(
+        [m.field_weight, m.lateral_weight, m.heading_weight, m.rate_weight, m.max_step, m.preview_margin, m.min_speed],
+        [20.0, 1.0, 30.0, 10.0, 0.15, 2.0, 2.0]
+    );
+    assert_eq!((p.gt.interaction_range, p.gt.lane_end_time, p.gt.fallback_brake), (60.0, 8.0, 3.0));
+}
+
+#[test]
+fn a_lane_change_into_a_lane_that_is_no_option_any_more_is_not_binding() {
+    // EC changing into lane 2, which ends 100 m ahead (within 8 s at 20 m/s): it decides
+    // afresh among the lanes it still has, and brakes for the stopped car ahead of it.
+    let stopped = Driver::Agent(AgentCommand::Direct(crate::dynamics::Command { accel: 0.0, preview: -4.0 }));
+    let cars = [
+        ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
+        ("stop", 1, 160.0, 0.0, Style::Normal, stopped),
+        ("beside", 0, 101.0, 20.0, Style::Normal, Driver::Idm),
+    ];
+    let mut world = world_with(merge_road(200.0), &cars);
+    world.change_lane(VehicleId(0), LaneId(2));
+    let decision = expert_decision(&world, VehicleId(0), Game::Nash);
+    assert_eq!(decision.sigma, 0, "{decision:?}");
+    assert!(decision.accel < 0.0 && decision.exact, "{decision:?}");
+}

@@ -151,3 +151,37 @@ fn missing_files_are_reported_by_name() {
     assert_eq!(err.file, "nothing.toml");
     assert!(matches!(err.kind, ScenarioErrorKind::Io(_)));
 }
+
+#[test]
+fn a_gt_driver_loads_with_its_game_and_role() {
+    let text = with(
+        "driver = { kind = \"agent\" }",
+        "driver = { kind = \"gt\", style = \"aggressive\", game = \"stackelberg\" }",
+    );
+    let scenario = parse(&text).unwrap();
+    let expected = DriverSpec::Gt { game: Game::Stackelberg, role: Role::Leader, follower_tolerance: 0.0 };
+    assert_eq!((scenario.vehicles[0].driver, scenario.vehicles[0].style), (expected, Style::Aggressive));
+    let text =
+        with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\", game = \"nash\", role = \"follower\" }");
+    let world = parse(&text).unwrap().build(0);
+    match &world.vehicles[0].driver {
+        Driver::Gt(gt) => assert_eq!((gt.game, gt.role), (Game::Nash, Role::Follower)),
+        other => panic!("expected a gt driver, got {other:?}"),
+    }
+}
+
+#[test]
+fn a_bad_gt_driver_is_refused_with_the_reason() {
+    let bad_game = error(&with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\", game = \"pareto\" }"));
+    assert!(bad_game.contains("pareto") && bad_game.contains("nash") && bad_game.contains("stackelberg"), "{bad_game}");
+    let no_game = error(&with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\" }"));
+    assert!(no_game.contains("missing field") && no_game.contains("game"), "{no_game}");
+    let bad_role =
+        error(&with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\", game = \"nash\", role = \"boss\" }"));
+    assert!(bad_role.contains("boss") && bad_role.contains("follower"), "{bad_role}");
+    let tolerance = error(&with(
+        "driver = { kind = \"agent\" }",
+        "driver = { kind = \"gt\", game = \"nash\", follower_tolerance = -0.5 }",
+    ));
+    assert!(tolerance.contains("vehicle 'a'.driver.follower_tolerance") && tolerance.contains("-0.5"), "{tolerance}");
+}

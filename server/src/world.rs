@@ -369,12 +369,6 @@ impl World {
     /// Integrates every vehicle on the road over one physics step.
     fn integrate(&mut self) {
         let (dt, time) = (self.params.physics_dt, self.time);
-        // Every vehicle of a style shares its driver's constants: prepare them per tick,
-        // not per vehicle (a vehicle with other parameters gets its own).
-        let prepared = Style::ALL.map(|style| {
-            let driver = DriverParams::for_style(style);
-            (driver, dynamics::Stepper::new(&self.vehicle_params, &driver, dt))
-        });
         for vehicle in &mut self.vehicles {
             if !vehicle.on_road() {
                 continue;
@@ -388,10 +382,7 @@ impl World {
                 _ => vehicle.path.preview(time, vehicle.driver_params.preview_time),
             };
             let curvature = self.road.curvature(vehicle.state.s);
-            let stepper = match prepared.iter().find(|(driver, _)| *driver == vehicle.driver_params) {
-                Some((_, stepper)) => *stepper,
-                None => dynamics::Stepper::new(&self.vehicle_params, &vehicle.driver_params, dt),
-            };
+            let stepper = dynamics::Stepper::new(&self.vehicle_params, &vehicle.driver_params, dt);
             vehicle.state = stepper.step(&vehicle.state, vehicle.command, curvature);
             if vehicle.state.s > self.road.length() {
                 vehicle.status = Status::Exited;

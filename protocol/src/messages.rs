@@ -186,7 +186,8 @@ pub enum OptionValue {
 pub enum ActionType {
     /// Discrete 5: lane left, idle, lane right, faster, slower.
     Meta,
-    /// Box 2: acceleration (m/s^2), preview offset from the lane centre (m).
+    /// Box 2 in [-1, 1]: acceleration (times 6 m/s^2), preview offset from the lane
+    /// centre (times the lane width).
     Continuous,
 }
 
@@ -215,8 +216,9 @@ pub const META_SLOWER: u32 = 4;
 pub enum Action {
     /// A meta action of Discrete(5): `META_LANE_LEFT` .. `META_SLOWER`.
     Meta(u32),
-    /// [acceleration (m/s^2), lateral preview target (m, offset from the current lane's
-    /// centre, positive to the left)], fed to the driver model.
+    /// [acceleration, lateral preview target], each in [-1, 1]: the server scales them to
+    /// m/s^2 (times 6) and to an offset from the current lane's centre (times the lane
+    /// width, positive to the left), fed to the driver model.
     Continuous([f32; 2]),
 }
 

@@ -17,7 +17,7 @@ use criterion::Criterion;
 
 fn scenario_b(game: Game) -> (World, VehicleId) {
     let world = world(PaperScenario::B, Style::Normal, game, &PaperOptions::default()).expect("overtake.toml loads");
-    let ec = world.find("ec").expect("overtake.toml has ec");
+    let ec = world.find("ec_0").expect("overtake.toml has ec_0");
     (world, ec)
 }
 

@@ -16,7 +16,7 @@ fn world_of(vehicles: usize) -> arena_server::world::World {
         // The default physics step (highway.toml itself runs at 50 Hz).
         ("sim.physics_dt".to_string(), toml::Value::Float(0.01)),
         ("traffic.count".to_string(), toml::Value::Integer(vehicles as i64 - 1)),
-        ("vehicle.ego.driver".to_string(), toml::Value::Table(toml::toml! { kind = "idm" })),
+        ("vehicle.ego_0.driver".to_string(), toml::Value::Table(toml::toml! { kind = "idm" })),
         ("road.sections".to_string(), toml::Value::Array(vec![toml::Value::Table(toml::toml! { length = 100000.0 })])),
     ];
     let (_, file, text) = BUILTIN[2];

@@ -55,8 +55,8 @@ impl PaperScenario {
     /// (scenario vehicle name, the paper's role) of EC and its adjacent cars, EC first.
     pub fn roles(self) -> &'static [(&'static str, &'static str)] {
         match self {
-            PaperScenario::A => &[("ec", "EC"), ("ac", "AC")],
-            PaperScenario::B => &[("ec", "EC"), ("ac1", "AC1"), ("ac2", "AC2")],
+            PaperScenario::A => &[("ec_0", "EC"), ("ac", "AC")],
+            PaperScenario::B => &[("ec_0", "EC"), ("ac1", "AC1"), ("ac2", "AC2")],
         }
     }
 
@@ -152,7 +152,7 @@ pub fn world(
     ec.insert("style".into(), style.name().into());
     ec.insert("game".into(), game.name().into());
     ec.insert("follower_tolerance".into(), options.follower_tolerance.into());
-    let mut overrides = vec![("vehicle.ec.driver".to_string(), toml::Value::Table(ec))];
+    let mut overrides = vec![("vehicle.ec_0.driver".to_string(), toml::Value::Table(ec))];
     for (name, _) in &scenario.roles()[1..] {
         let mut ac = toml::Table::new();
         ac.insert("kind".into(), "gt".into());

@@ -31,17 +31,17 @@ async fn agents_leave_at_once_and_never_return() {
     // either way it must finish before the lane ends and leave at once.
     let mut finished = false;
     for _ in 0..400 {
-        let step = env.step(meta("ec", 0)).await.unwrap();
+        let step = env.step(meta("ec_0", 0)).await.unwrap();
         assert_eq!(step.rewards.len(), 1, "every agent live before the step is in every dict");
         if step.terminations[0].1 || step.truncations[0].1 {
             assert!(step.agents.is_empty(), "a finished agent leaves `agents` in the same step");
             finished = true;
             break;
         }
-        assert_eq!(step.agents, ["ec"]);
+        assert_eq!(step.agents, ["ec_0"]);
     }
     assert!(finished);
-    assert_eq!(code(env.step(meta("ec", 1)).await), ErrorCode::AgentNotLive);
+    assert_eq!(code(env.step(meta("ec_0", 1)).await), ErrorCode::AgentNotLive);
     assert_eq!(code(env.step(vec![]).await), ErrorCode::AgentNotLive);
     let again = env.reset(Some(0), vec![]).await.unwrap();
     assert_eq!(again.observations, reset.observations, "reset brings agents back with the same start");
@@ -56,7 +56,7 @@ async fn missing_action_is_idle() {
     a.reset(Some(8), vec![]).await.unwrap();
     b.reset(Some(8), vec![]).await.unwrap();
     for _ in 0..3 {
-        let with_idle = a.step(meta("ego", 1)).await.unwrap();
+        let with_idle = a.step(meta("ego_0", 1)).await.unwrap();
         let without = b.step(vec![]).await.unwrap();
         assert_eq!(with_idle.observations, without.observations);
         assert_eq!(with_idle.rewards, without.rewards);
@@ -101,7 +101,7 @@ async fn same_seed_same_replies_across_clients_other_seed_differs() {
     assert_eq!(ra.observations, rb.observations);
     assert_ne!(ra.observations, rc.observations);
     for k in 0..6u32 {
-        let (sa, sb) = (a.step(meta("ego", k % 5)).await.unwrap(), b.step(meta("ego", k % 5)).await.unwrap());
+        let (sa, sb) = (a.step(meta("ego_0", k % 5)).await.unwrap(), b.step(meta("ego_0", k % 5)).await.unwrap());
         assert_eq!(format!("{sa:?}"), format!("{sb:?}"), "step {k} differs");
     }
 }
@@ -131,12 +131,12 @@ async fn a_retried_step_returns_the_same_reply_and_steps_once() {
     let mut twin = harness.env(&client, "highway").await;
     env.reset(Some(3), vec![]).await.unwrap();
     twin.reset(Some(3), vec![]).await.unwrap();
-    let first = env.step_with_seq(2, meta("ego", 3)).await.unwrap();
-    let retried = env.step_with_seq(2, meta("ego", 3)).await.unwrap();
+    let first = env.step_with_seq(2, meta("ego_0", 3)).await.unwrap();
+    let retried = env.step_with_seq(2, meta("ego_0", 3)).await.unwrap();
     assert_eq!(format!("{first:?}"), format!("{retried:?}"));
     // Had the retry stepped again, the next step would be the twin's third, not second.
     let next = env.step_with_seq(3, vec![]).await.unwrap();
-    twin.step(meta("ego", 3)).await.unwrap();
+    twin.step(meta("ego_0", 3)).await.unwrap();
     let twin_next = twin.step(vec![]).await.unwrap();
     assert_eq!(next.observations, twin_next.observations);
     assert_eq!(code(env.step_with_seq(1, vec![]).await), ErrorCode::StaleSequence);
@@ -154,9 +154,9 @@ async fn a_batch_steps_many_envs_in_one_round_trip() {
     }
     let mut single = harness.env(&client, "highway").await;
     single.reset(Some(4), vec![]).await.unwrap();
-    let expected = single.step(meta("ego", 2)).await.unwrap();
+    let expected = single.step(meta("ego_0", 2)).await.unwrap();
     let mut handles: Vec<_> = envs.iter_mut().collect();
-    let replies = client.step_batch(&mut handles, (0..6).map(|_| meta("ego", 2)).collect()).await.unwrap();
+    let replies = client.step_batch(&mut handles, (0..6).map(|_| meta("ego_0", 2)).collect()).await.unwrap();
     assert_eq!(replies.len(), 6);
     assert_eq!(replies[4].as_ref().unwrap().observations, expected.observations);
 }
@@ -231,7 +231,7 @@ async fn every_kind_of_bad_input_gets_its_coded_error_and_the_server_keeps_servi
         other => panic!("{other:?}"),
     }
     let bad_override =
-        CreateOptions { overrides: vec![("vehicle.ec.lane".into(), OptionValue::Int(9))], ..Default::default() };
+        CreateOptions { overrides: vec![("vehicle.ec_0.lane".into(), OptionValue::Int(9))], ..Default::default() };
     let refused = client.create_env(harness.server.id(), ScenarioSource::Named("merge".into()), bad_override).await;
     assert_eq!(code(refused), ErrorCode::InvalidScenario);
 
@@ -242,8 +242,8 @@ async fn every_kind_of_bad_input_gets_its_coded_error_and_the_server_keeps_servi
 
     // 10-14: actions.
     assert_eq!(code(env.step(meta("nobody", 1)).await), ErrorCode::UnknownAgent);
-    assert_eq!(code(env.step(meta("ec", 7)).await), ErrorCode::InvalidAction);
-    assert_eq!(code(env.step(vec![("ec".into(), Action::Continuous([0.0, 1.0]))]).await), ErrorCode::WrongActionType);
+    assert_eq!(code(env.step(meta("ec_0", 7)).await), ErrorCode::InvalidAction);
+    assert_eq!(code(env.step(vec![("ec_0".into(), Action::Continuous([0.0, 1.0]))]).await), ErrorCode::WrongActionType);
     let mut continuous = harness
         .env_with(
             &client,
@@ -253,11 +253,11 @@ async fn every_kind_of_bad_input_gets_its_coded_error_and_the_server_keeps_servi
         .await;
     continuous.reset(Some(0), vec![]).await.unwrap();
     assert_eq!(
-        code(continuous.step(vec![("ec".into(), Action::Continuous([f32::NAN, 0.0]))]).await),
+        code(continuous.step(vec![("ec_0".into(), Action::Continuous([f32::NAN, 0.0]))]).await),
         ErrorCode::InvalidAction
     );
     assert_eq!(
-        code(continuous.step(vec![("ec".into(), Action::Continuous([50.0, 0.0]))]).await),
+        code(continuous.step(vec![("ec_0".into(), Action::Continuous([50.0, 0.0]))]).await),
         ErrorCode::InvalidAction
     );
 
@@ -275,12 +275,12 @@ async fn every_kind_of_bad_input_gets_its_coded_error_and_the_server_keeps_servi
     assert_eq!(raw_code(&raw(&harness, &encode(&close_again)).await), ErrorCode::EnvClosed);
 
     // 18: a stale sequence number.
-    let step = env.step(meta("ec", 1)).await.unwrap();
+    let step = env.step(meta("ec_0", 1)).await.unwrap();
     assert_eq!(code(env.step_with_seq(step.seq - 1, vec![]).await), ErrorCode::StaleSequence);
 
     // And a valid request still works after all of it.
-    let fine = env.step(meta("ec", 1)).await.unwrap();
-    assert_eq!(fine.agents, ["ec"]);
+    let fine = env.step(meta("ec_0", 1)).await.unwrap();
+    assert_eq!(fine.agents, ["ec_0"]);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

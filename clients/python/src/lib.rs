@@ -1,1 +1,435 @@
-//! Python extension.
+//! `highway_arena._core`: the Rust client (`arena_client::blocking`) seen from Python.
+//! It moves wire types into plain Python values — observations as (dtype, shape, bytes)
+//! so the Python side builds fresh numpy arrays, spaces as dicts, infos as dicts — and
+//! releases the GIL while it waits on the network. The PettingZoo and Gymnasium classes
+//! live in the Python package on top (python/highway_arena).
+
+use std::sync::Mutex;
+
+use arena_client::blocking::{Client as BlockingClient, Env as BlockingEnv};
+use arena_client::{ClientError, CreateOptions, OptionValue, ScenarioSource};
+use arena_protocol::session::{ConnectionFlags, Mode};
+use arena_protocol::{
+    Action, ActionType, ExpertGame, Frame, Info, InfoValue, Observation, ObservationKind, RenderMode, Space, StepReply,
+    Tensor, TensorData,
+};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+
+pyo3::create_exception!(
+    _core,
+    ArenaError,
+    PyRuntimeError,
+    "An error from highway-arena: args are (code, message); code is the server's error code name, or Timeout, NoServer, Zenoh, Protocol."
+);
+
+fn to_py_err(error: ClientError) -> PyErr {
+    let code = match &error {
+        ClientError::Server(reply) => format!("{:?}", reply.code),
+        ClientError::Timeout { .. } => "Timeout".to_string(),
+        ClientError::NoServer { .. } => "NoServer".to_string(),
+        ClientError::Zenoh(_) => "Zenoh".to_string(),
+        ClientError::Protocol(_) => "Protocol".to_string(),
+    };
+    let message = match &error {
+        ClientError::Server(reply) => reply.message.clone(),
+        other => other.to_string(),
+    };
+    ArenaError::new_err((code, message))
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// A connection to the Zenoh network of arena-servers.
+#[pyclass(module = "highway_arena._core")]
+struct Client {
+    inner: BlockingClient,
+}
+
+#[pymethods]
+impl Client {
+    #[new]
+    #[pyo3(signature = (connect, prefix = "arena".to_string(), timeout = 10.0, retries = 2, mode = "peer".to_string()))]
+    fn new(
+        py: Python<'_>,
+        connect: Vec<String>,
+        prefix: String,
+        timeout: f64,
+        retries: u32,
+        mode: String,
+    ) -> PyResult<Client> {
+        if !(timeout.is_finite() && timeout > 0.0) {
+            return Err(PyValueError::new_err(format!("timeout must be a positive number of seconds, not {timeout}")));
+        }
+        let mode = match mode.as_str() {
+            "peer" => Mode::Peer,
+            "client" => Mode::Client,
+            "router" => Mode::Router,
+            other => return Err(PyValueError::new_err(format!("mode must be peer, client or router, not {other:?}"))),
+        };
+        let flags = ConnectionFlags { mode, connect, prefix, timeout, retries, ..ConnectionFlags::default() };
+        let inner = py.detach(|| BlockingClient::connect(&flags)).map_err(to_py_err)?;
+        Ok(Client { inner })
+    }
+
+    /// Ids of the servers alive now.
+    fn servers(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        py.detach(|| self.inner.servers()).map_err(to_py_err)
+    }
+
+    /// The first server found, waiting up to the timeout for one.
+    fn pick_server(&self, py: Python<'_>) -> PyResult<String> {
+        py.detach(|| self.inner.pick_server()).map_err(to_py_err)
+    }
+
+    /// Creates an env: `scenario` names one on the server, or `text` is a scenario
+    /// file's TOML (then `scenario` names it in error messages).
+    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn create_env(
+        &self,
+        py: Python<'_>,
+        server: String,
+        scenario: String,
+        text: Option<String>,
+        overrides: Vec<(String, Bound<'_, PyAny>)>,
+        action_type: Option<String>,
+        observation: Option<String>,
+        max_cycles: Option<u32>,
+        render_size: Option<(u32, u32)>,
+        expert: Option<String>,
+    ) -> PyResult<Env> {
+        let overrides = overrides
+            .into_iter()
+            .map(|(key, value)| option_value(&key, &value).map(|v| (key, v)))
+            .collect::<PyResult<Vec<_>>>()?;
+        let action_type = match action_type.as_deref() {
+            None => None,
+            Some("meta") => Some(ActionType::Meta),
+            Some("continuous") => Some(ActionType::Continuous),
+            Some(other) => {
+                return Err(PyValueError::new_err(format!("action_type must be 'meta' or 'continuous', not {other:?}")));
+            }
+        };
+        let observation = match observation.as_deref() {
+            None | Some("kinematics") => None,
+            Some("kinematics_with_mask") => Some(ObservationKind::KinematicsWithMask),
+            Some(other) => {
+                return Err(PyValueError::new_err(format!(
+                    "observation must be 'kinematics' or 'kinematics_with_mask', not {other:?}"
+                )));
+            }
+        };
+        let expert = match expert.as_deref() {
+            None => None,
+            Some("nash") => Some(ExpertGame::Nash),
+            Some("stackelberg") => Some(ExpertGame::Stackelberg),
+            Some(other) => {
+                return Err(PyValueError::new_err(format!("expert must be 'nash' or 'stackelberg', not {other:?}")));
+            }
+        };
+        let source = match text {
+            Some(text) => ScenarioSource::Inline { file_name: scenario, text },
+            None => ScenarioSource::Named(scenario),
+        };
+        let options = CreateOptions { overrides, action_type, observation, max_cycles, render_size, expert };
+        let env = py.detach(|| self.inner.create_env(&server, source, options)).map_err(to_py_err)?;
+        Ok(Env { inner: Mutex::new(Some(env)) })
+    }
+
+    /// Steps many envs of this client in one round trip; returns, per env, a step result
+    /// tuple or the exception it raised (not raised: the caller decides).
+    fn step_batch<'py>(
+        &self,
+        py: Python<'py>,
+        envs: Vec<PyRef<'py, Env>>,
+        actions: Vec<Bound<'py, PyDict>>,
+    ) -> PyResult<Vec<Py<PyAny>>> {
+        if envs.len() != actions.len() {
+            return Err(PyValueError::new_err(format!("{} envs but {} action dicts", envs.len(), actions.len())));
+        }
+        let actions = actions.iter().map(parse_actions).collect::<PyResult<Vec<_>>>()?;
+        let mut guards: Vec<_> = envs.iter().map(|env| lock(&env.inner)).collect();
+        let mut handles = Vec::with_capacity(guards.len());
+        for guard in guards.iter_mut() {
+            handles.push(guard.as_mut().ok_or_else(closed_error)?);
+        }
+        let results = py.detach(|| self.inner.step_batch(&mut handles, actions)).map_err(to_py_err)?;
+        results
+            .into_iter()
+            .map(|result| match result {
+                Ok(reply) => step_tuple(py, reply).map(|t| t.into_any().unbind()),
+                Err(error) => Ok(to_py_err(error).into_value(py).into_any()),
+            })
+            .collect()
+    }
+
+    /// Closes the session; servers then close this client's envs. Idempotent.
+    fn close(&self, py: Python<'_>) -> PyResult<()> {
+        py.detach(|| self.inner.close()).map_err(to_py_err)
+    }
+}
+
+fn closed_error() -> PyErr {
+    ArenaError::new_err(("EnvClosed".to_string(), "this env was closed; create a new one".to_string()))
+}
+
+fn option_value(key: &str, value: &Bound<'_, PyAny>) -> PyResult<OptionValue> {
+    if value.is_instance_of::<pyo3::types::PyBool>() {
+        return Ok(OptionValue::Bool(value.extract()?));
+    }
+    if let Ok(int) = value.extract::<i64>() {
+        return Ok(OptionValue::Int(int));
+    }
+    if let Ok(float) = value.extract::<f64>() {
+        return Ok(OptionValue::Float(float));
+    }
+    if let Ok(text) = value.extract::<String>() {
+        return Ok(OptionValue::Str(text));
+    }
+    Err(PyTypeError::new_err(format!(
+        "override {key}: expected bool, int, float or str, got {}",
+        value.get_type().name()?
+    )))
+}
+
+fn parse_actions(actions: &Bound<'_, PyDict>) -> PyResult<Vec<(String, Action)>> {
+    let mut parsed = Vec::with_capacity(actions.len());
+    for (agent, action) in actions.iter() {
+        let agent: String =
+            agent.extract().map_err(|_| PyTypeError::new_err("action dict keys must be agent names (str)"))?;
+        parsed.push((agent.clone(), parse_action(&agent, &action)?));
+    }
+    Ok(parsed)
+}
+
+/// An int (Python or numpy) is a meta action; a sequence of 2 floats a continuous one.
+fn parse_action(agent: &str, action: &Bound<'_, PyAny>) -> PyResult<Action> {
+    if let Ok(index) = action.extract::<i64>() {
+        return u32::try_from(index).map(Action::Meta).map_err(|_| {
+            PyValueError::new_err(format!("agent '{agent}': action {index} is outside Discrete(5): use 0..=4"))
+        });
+    }
+    if let Ok(values) = action.extract::<Vec<f32>>() {
+        let pair: [f32; 2] = values.as_slice().try_into().map_err(|_| {
+            PyValueError::new_err(format!("agent '{agent}': a continuous action has 2 values, got {}", values.len()))
+        })?;
+        return Ok(Action::Continuous(pair));
+    }
+    Err(PyTypeError::new_err(format!(
+        "agent '{agent}': an action is an int (meta) or 2 floats (continuous), got {}",
+        action.get_type().name()?
+    )))
+}
+
+fn tensor_tuple<'py>(py: Python<'py>, tensor: &Tensor) -> PyResult<Bound<'py, PyTuple>> {
+    let (dtype, bytes): (&str, Vec<u8>) = match &tensor.data {
+        TensorData::F32(v) => ("float32", v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+        TensorData::U8(v) => ("uint8", v.clone()),
+        TensorData::I8(v) => ("int8", v.iter().map(|&x| x as u8).collect()),
+        TensorData::I64(v) => ("int64", v.iter().flat_map(|x| x.to_le_bytes()).collect()),
+    };
+    let shape = PyTuple::new(py, tensor.shape.iter().copied())?;
+    PyTuple::new(py, [dtype.into_pyobject(py)?.into_any(), shape.into_any(), PyBytes::new(py, &bytes).into_any()])
+}
+
+/// ("tensor", (dtype, shape, bytes)) or ("dict", [(key, (dtype, shape, bytes)), ...]).
+fn observation_value<'py>(py: Python<'py>, observation: &Observation) -> PyResult<Bound<'py, PyAny>> {
+    match observation {
+        Observation::Tensor(tensor) => Ok(("tensor", tensor_tuple(py, tensor)?).into_pyobject(py)?.into_any()),
+        Observation::Dict(items) => {
+            let list = PyList::empty(py);
+            for (key, tensor) in items {
+                list.append((key.as_str(), tensor_tuple(py, tensor)?))?;
+            }
+            Ok(("dict", list).into_pyobject(py)?.into_any())
+        }
+    }
+}
+
+fn info_dict<'py>(py: Python<'py>, info: &Info) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    for (key, value) in &info.values {
+        match value {
+            InfoValue::F64(x) => dict.set_item(key, x)?,
+            InfoValue::Bool(x) => dict.set_item(key, x)?,
+            InfoValue::Str(x) => dict.set_item(key, x)?,
+            InfoValue::I64(x) => dict.set_item(key, x)?,
+            InfoValue::F64s(x) => dict.set_item(key, x.clone())?,
+        }
+    }
+    Ok(dict)
+}
+
+fn space_dict<'py>(py: Python<'py>, space: &Space) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    match space {
+        Space::Box { low, high, shape, dtype } => {
+            dict.set_item("type", "box")?;
+            dict.set_item("low", low.clone())?;
+            dict.set_item("high", high.clone())?;
+            dict.set_item("shape", PyTuple::new(py, shape.iter().copied())?)?;
+            dict.set_item("dtype", dtype.numpy_name())?;
+        }
+        Space::Discrete { n, start } => {
+            dict.set_item("type", "discrete")?;
+            dict.set_item("n", n)?;
+            dict.set_item("start", start)?;
+        }
+        Space::Dict(items) => {
+            dict.set_item("type", "dict")?;
+            let list = PyList::empty(py);
+            for (key, inner) in items {
+                list.append((key.as_str(), space_dict(py, inner)?))?;
+            }
+            dict.set_item("spaces", list)?;
+        }
+    }
+    Ok(dict)
+}
+
+fn pairs<'py, T>(
+    py: Python<'py>,
+    items: &[(String, T)],
+    mut value: impl FnMut(&T) -> PyResult<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    for (agent, item) in items {
+        dict.set_item(agent, value(item)?)?;
+    }
+    Ok(dict)
+}
+
+/// (observations, rewards, terminations, truncations, infos, agents) of a step.
+fn step_tuple(py: Python<'_>, reply: StepReply) -> PyResult<Bound<'_, PyTuple>> {
+    let observations = pairs(py, &reply.observations, |o| observation_value(py, o))?;
+    let rewards = pairs(py, &reply.rewards, |r| Ok(r.into_pyobject(py)?.into_any()))?;
+    let terminations = pairs(py, &reply.terminations, |t| Ok(t.into_pyobject(py)?.to_owned().into_any()))?;
+    let truncations = pairs(py, &reply.truncations, |t| Ok(t.into_pyobject(py)?.to_owned().into_any()))?;
+    let infos = pairs(py, &reply.infos, |i| Ok(info_dict(py, i)?.into_any()))?;
+    let agents = PyList::new(py, &reply.agents)?;
+    PyTuple::new(
+        py,
+        [
+            observations.into_any(),
+            rewards.into_any(),
+            terminations.into_any(),
+            truncations.into_any(),
+            infos.into_any(),
+            agents.into_any(),
+        ],
+    )
+}
+
+/// An env on a server.
+#[pyclass(module = "highway_arena._core")]
+struct Env {
+    inner: Mutex<Option<BlockingEnv>>,
+}
+
+impl Env {
+    fn with<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut BlockingEnv) -> Result<T, ClientError> + Send,
+    ) -> PyResult<T> {
+        let mut guard = lock(&self.inner);
+        let env = guard.as_mut().ok_or_else(closed_error)?;
+        py.detach(|| f(env)).map_err(to_py_err)
+    }
+}
+
+#[pymethods]
+impl Env {
+    /// possible_agents, spaces (as dicts), dt, max_cycles, render_fps.
+    fn specs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let guard = lock(&self.inner);
+        let env = guard.as_ref().ok_or_else(closed_error)?;
+        let specs = env.specs();
+        let dict = PyDict::new(py);
+        dict.set_item("possible_agents", specs.possible_agents.clone())?;
+        dict.set_item(
+            "observation_spaces",
+            pairs(py, &specs.observation_spaces, |s| Ok(space_dict(py, s)?.into_any()))?,
+        )?;
+        dict.set_item("action_spaces", pairs(py, &specs.action_spaces, |s| Ok(space_dict(py, s)?.into_any()))?)?;
+        dict.set_item("state_space", space_dict(py, &specs.state_space)?)?;
+        dict.set_item("dt", specs.dt)?;
+        dict.set_item("max_cycles", specs.max_cycles)?;
+        dict.set_item("render_fps", specs.render_fps)?;
+        Ok(dict)
+    }
+
+    /// (observations, infos).
+    #[pyo3(signature = (seed = None, options = None))]
+    fn reset<'py>(
+        &self,
+        py: Python<'py>,
+        seed: Option<u64>,
+        options: Option<Bound<'py, PyDict>>,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let mut parsed = Vec::new();
+        if let Some(options) = options {
+            for (key, value) in options.iter() {
+                let key: String = key.extract()?;
+                // Options this server does not know are ignored, as PettingZoo asks;
+                // values it cannot carry are dropped the same way.
+                if let Ok(value) = option_value(&key, &value) {
+                    parsed.push((key, value));
+                }
+            }
+        }
+        let reply = self.with(py, move |env| env.reset(seed, parsed))?;
+        let observations = pairs(py, &reply.observations, |o| observation_value(py, o))?;
+        let infos = pairs(py, &reply.infos, |i| Ok(info_dict(py, i)?.into_any()))?;
+        PyTuple::new(py, [observations.into_any(), infos.into_any()])
+    }
+
+    /// (observations, rewards, terminations, truncations, infos, agents).
+    fn step<'py>(&self, py: Python<'py>, actions: Bound<'py, PyDict>) -> PyResult<Bound<'py, PyTuple>> {
+        let actions = parse_actions(&actions)?;
+        let reply = self.with(py, move |env| env.step(actions))?;
+        step_tuple(py, reply)
+    }
+
+    /// ("rgb", height, width, bytes) or ("ansi", text).
+    fn render<'py>(&self, py: Python<'py>, mode: &str) -> PyResult<Bound<'py, PyTuple>> {
+        let mode = match mode {
+            "rgb_array" => RenderMode::RgbArray,
+            "ansi" => RenderMode::Ansi,
+            other => {
+                return Err(PyValueError::new_err(format!("render mode must be 'rgb_array' or 'ansi', not {other:?}")));
+            }
+        };
+        match self.with(py, move |env| env.render(mode))? {
+            Frame::Rgb { height, width, pixels } => ("rgb", height, width, PyBytes::new(py, &pixels)).into_pyobject(py),
+            Frame::Ansi(text) => ("ansi", text).into_pyobject(py),
+        }
+    }
+
+    /// The global state, as an observation value.
+    fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let state = self.with(py, |env| env.state())?;
+        observation_value(py, &state)
+    }
+
+    /// Closes the env on the server. Idempotent.
+    fn close(&self, py: Python<'_>) -> PyResult<()> {
+        let taken = lock(&self.inner).take();
+        if let Some(mut env) = taken {
+            py.detach(move || env.close()).map_err(to_py_err)?;
+        }
+        Ok(())
+    }
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Client>()?;
+    m.add_class::<Env>()?;
+    m.add("ArenaError", m.py().get_type::<ArenaError>())?;
+    Ok(())
+}

@@ -80,7 +80,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
 
     let mut env = client.create_env(&server, ScenarioSource::Named("merge".into()), CreateOptions::default())?;
     env.reset(Some(0), vec![])?;
-    let actions = vec![("ec".to_string(), Action::Meta(META_IDLE))];
+    let actions = vec![("ec_0".to_string(), Action::Meta(META_IDLE))];
     let sample = env.step(actions.clone())?;
     let request_bytes = encode(&Request {
         version: PROTOCOL_VERSION,

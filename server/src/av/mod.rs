@@ -15,7 +15,7 @@
 //! use arena_server::scenario::builtin;
 //!
 //! let world = builtin("overtake").unwrap().unwrap().build(0);
-//! let ec = world.find("ec").unwrap();
+//! let ec = world.find("ec_0").unwrap();
 //! let decision = expert_decision(&world, ec, Game::Stackelberg);
 //! assert!((-1..=1).contains(&decision.sigma));
 //! let j = stage_cost(&world, ec).weighted(world.vehicle(ec).style);

@@ -1,12 +1,13 @@
 //! Learners' actions: their spaces, their checks, and how they drive a vehicle.
 //! `meta` is highway-env's DiscreteMetaAction (lane left, idle, lane right, faster,
 //! slower; target speeds 20/25/30 m/s); `continuous` gives the driver model its inputs
-//! directly: an acceleration and a preview point relative to the current lane's centre.
+//! directly: an acceleration and a preview point relative to the current lane's centre,
+//! each normalised to [-1, 1] as highway-env's ContinuousAction is (learners do best on
+//! a symmetric unit box): 1 is the acceleration bound and one lane width to the left.
 
 use arena_protocol::{Action, ActionType, DType, ErrorCode, Space};
 
 use crate::road::LaneId;
-use crate::scenario::Scenario;
 use crate::world::{AgentCommand, Driver, VehicleId, World};
 
 /// The target speeds `faster` and `slower` step through (m/s): highway-env's
@@ -18,29 +19,21 @@ const LANE_RIGHT: u32 = 2;
 const FASTER: u32 = 3;
 const SLOWER: u32 = 4;
 
-/// Bounds of the continuous action: ([accel low, preview low], [accel high, preview high]).
-fn continuous_bounds(scenario: &Scenario) -> ([f32; 2], [f32; 2]) {
-    let accel = crate::traffic::IdmParams::default().accel_limit as f32;
-    let width = scenario.road.lane_width() as f32;
-    ([-accel, -width], [accel, width])
-}
-
 /// The action space of an agent driving with `kind`.
-pub fn space(kind: ActionType, scenario: &Scenario) -> Space {
+pub fn space(kind: ActionType) -> Space {
     match kind {
         ActionType::Meta => Space::Discrete { n: 5, start: 0 },
         ActionType::Continuous => {
-            let (low, high) = continuous_bounds(scenario);
-            Space::Box { low: low.to_vec(), high: high.to_vec(), shape: vec![2], dtype: DType::F32 }
+            Space::Box { low: vec![-1.0; 2], high: vec![1.0; 2], shape: vec![2], dtype: DType::F32 }
         }
     }
 }
 
 /// Refuses an action of the wrong type, out of its space, or not finite.
-pub fn check(action: &Action, kind: ActionType, scenario: &Scenario) -> Result<(), (ErrorCode, String)> {
+pub fn check(action: &Action, kind: ActionType) -> Result<(), (ErrorCode, String)> {
     match (action, kind) {
         (Action::Meta(_), ActionType::Meta) | (Action::Continuous(_), ActionType::Continuous) => {
-            space(kind, scenario).contains_action(action).map_err(|message| (ErrorCode::InvalidAction, message))
+            space(kind).contains_action(action).map_err(|message| (ErrorCode::InvalidAction, message))
         }
         (_, expected) => {
             Err((ErrorCode::WrongActionType, format!("this agent takes {expected:?} actions, got {action:?}")))
@@ -101,7 +94,8 @@ pub fn apply(world: &mut World, id: VehicleId, action: Option<&Action>, kind: Ac
                 Some(&Action::Continuous(values)) => values.map(f64::from),
                 _ => [0.0, 0.0],
             };
-            let command = crate::dynamics::Command { accel, preview: centre + offset };
+            let accel = accel * world.idm.accel_limit;
+            let command = crate::dynamics::Command { accel, preview: centre + offset * world.road.lane_width() };
             let vehicle = world.vehicle_mut(id);
             vehicle.target_lane = lane;
             vehicle.driver = Driver::Agent(AgentCommand::Direct(command));

@@ -136,11 +136,7 @@ impl Env {
         EnvSpecs {
             possible_agents: self.agents.iter().map(|a| a.name.clone()).collect(),
             observation_spaces: self.agents.iter().map(|a| (a.name.clone(), observation_space.clone())).collect(),
-            action_spaces: self
-                .agents
-                .iter()
-                .map(|a| (a.name.clone(), action::space(a.action, &self.scenario)))
-                .collect(),
+            action_spaces: self.agents.iter().map(|a| (a.name.clone(), action::space(a.action))).collect(),
             state_space: observation::state_space(&self.scenario),
             dt: self.scenario.step_dt,
             max_cycles: self.max_cycles,
@@ -195,7 +191,7 @@ impl Env {
             if !agent.live {
                 return Err(error(ErrorCode::AgentNotLive, format!("agent '{name}' has finished this episode")));
             }
-            action::check(action, agent.action, &self.scenario)
+            action::check(action, agent.action)
                 .map_err(|(code, message)| error(code, format!("agent '{name}': {message}")))?;
             if chosen[index].replace(action.clone()).is_some() {
                 return Err(error(ErrorCode::InvalidAction, format!("agent '{name}' has two actions in one step")));
@@ -259,7 +255,7 @@ impl Env {
 
     /// The action space of every agent (the same Space the specs list).
     pub fn action_space(&self, agent: &str) -> Option<Space> {
-        self.agents.iter().find(|a| a.name == agent).map(|a| action::space(a.action, &self.scenario))
+        self.agents.iter().find(|a| a.name == agent).map(|a| action::space(a.action))
     }
 }
 
@@ -273,7 +269,8 @@ fn add_expert(expert: Option<crate::av::Game>, info: &mut Info, world: &World, a
     let action = match agent.action {
         ActionType::Meta => InfoValue::I64(i64::from(action::meta_equivalent(decision.accel, decision.sigma))),
         ActionType::Continuous => {
-            InfoValue::F64s(vec![decision.accel, -f64::from(decision.sigma) * world.road.lane_width()])
+            let accel = (decision.accel / world.idm.accel_limit).clamp(-1.0, 1.0);
+            InfoValue::F64s(vec![accel, -f64::from(decision.sigma)])
         }
     };
     info.values.push(("expert_action".to_string(), action));

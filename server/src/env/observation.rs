@@ -3,6 +3,9 @@
 //! road, each [presence, s, d, v_s, v_d, cos h, sin h]; other vehicles are relative to
 //! the agent. Every feature is normalised and clipped into [-1, 1], float32. The state
 //! is the same features, absolute, for every vehicle of the scenario in a fixed order.
+//! Both are flat vectors (rows one after another): a 2-D matrix with negative entries
+//! looks like an image to PettingZoo's checks and to image-aware policies, and MLP
+//! policies flatten it anyway; reshape to (rows, 7) to get the matrix back.
 
 use arena_protocol::{ActionType, DType, Observation, ObservationKind, Space, Tensor, TensorData};
 
@@ -27,7 +30,7 @@ fn unit_box(shape: Vec<u32>) -> Space {
 
 /// The observation space of every agent.
 pub fn space(kind: ObservationKind, _scenario: &Scenario) -> Space {
-    let kinematics = unit_box(vec![KINEMATICS_VEHICLES as u32, KINEMATICS_FEATURES as u32]);
+    let kinematics = unit_box(vec![(KINEMATICS_VEHICLES * KINEMATICS_FEATURES) as u32]);
     match kind {
         ObservationKind::Kinematics => kinematics,
         ObservationKind::KinematicsWithMask => Space::Dict(vec![
@@ -42,7 +45,7 @@ pub fn space(kind: ObservationKind, _scenario: &Scenario) -> Space {
 
 /// The state space: one row per vehicle the scenario can hold.
 pub fn state_space(scenario: &Scenario) -> Space {
-    unit_box(vec![vehicle_count(scenario) as u32, KINEMATICS_FEATURES as u32])
+    unit_box(vec![(vehicle_count(scenario) * KINEMATICS_FEATURES) as u32])
 }
 
 fn vehicle_count(scenario: &Scenario) -> usize {
@@ -70,7 +73,7 @@ fn features(world: &World, id: VehicleId, origin: Option<VehicleId>) -> [f32; KI
     [1.0, s, d, vs, vd, cos, sin].map(|x| x.clamp(-1.0, 1.0) as f32)
 }
 
-/// The kinematics matrix of agent `id`.
+/// The kinematics matrix of agent `id`, flattened row by row.
 pub fn kinematics(world: &World, id: VehicleId) -> Tensor {
     let me = world.vehicle(id).state.s;
     let mut near: Vec<(f64, u32)> = world
@@ -87,7 +90,7 @@ pub fn kinematics(world: &World, id: VehicleId) -> Tensor {
         data.extend(features(world, VehicleId(other), Some(id)));
     }
     data.resize(KINEMATICS_VEHICLES * KINEMATICS_FEATURES, 0.0);
-    Tensor { shape: vec![KINEMATICS_VEHICLES as u32, KINEMATICS_FEATURES as u32], data: TensorData::F32(data) }
+    Tensor { shape: vec![(KINEMATICS_VEHICLES * KINEMATICS_FEATURES) as u32], data: TensorData::F32(data) }
 }
 
 /// What agent `id` observes.
@@ -118,5 +121,5 @@ pub fn state(world: &World, scenario: &Scenario) -> Observation {
         }
     }
     data.resize(rows * KINEMATICS_FEATURES, 0.0);
-    Observation::Tensor(Tensor { shape: vec![rows as u32, KINEMATICS_FEATURES as u32], data: TensorData::F32(data) })
+    Observation::Tensor(Tensor { shape: vec![(rows * KINEMATICS_FEATURES) as u32], data: TensorData::F32(data) })
 }

@@ -16,7 +16,7 @@ fn step_before_reset_is_refused_and_reset_makes_every_agent_live() {
     assert_eq!(env.step(&[]).unwrap_err().code, ErrorCode::NotReset);
     let outcome = env.reset(Some(3), &[]);
     assert_eq!(outcome.len(), 1);
-    assert_eq!(env.live_agents(), ["ec"]);
+    assert_eq!(env.live_agents(), ["ec_0"]);
 }
 
 #[test]
@@ -47,7 +47,7 @@ fn a_crashed_agent_leaves_at_once_and_never_returns() {
     env.reset(Some(0), &[]);
     let mut finished_at = None;
     for k in 0..200 {
-        let steps = env.step(&meta("ec", 0)).unwrap(); // left into ac's lane: a crash or a merge
+        let steps = env.step(&meta("ec_0", 0)).unwrap(); // left into ac's lane: a crash or a merge
         let ec = &steps[0];
         if ec.terminated || ec.truncated {
             finished_at = Some(k);
@@ -57,7 +57,7 @@ fn a_crashed_agent_leaves_at_once_and_never_returns() {
     // Whatever ended it, afterwards ec is gone for good.
     assert!(finished_at.is_some());
     assert!(env.live_agents().is_empty());
-    assert_eq!(env.step(&meta("ec", 1)).unwrap_err().code, ErrorCode::AgentNotLive);
+    assert_eq!(env.step(&meta("ec_0", 1)).unwrap_err().code, ErrorCode::AgentNotLive);
 }
 
 #[test]
@@ -66,7 +66,7 @@ fn missing_action_keeps_lane_and_speed() {
     let mut b = env("highway", CreateOptions::default());
     assert_eq!(a.reset(Some(5), &[]), b.reset(Some(5), &[]));
     for _ in 0..3 {
-        assert_eq!(a.step(&[]).unwrap(), b.step(&meta("ego", 1)).unwrap());
+        assert_eq!(a.step(&[]).unwrap(), b.step(&meta("ego_0", 1)).unwrap());
     }
 }
 
@@ -96,10 +96,10 @@ fn bad_actions_are_refused_without_stepping() {
     let before = env.world().unwrap().clone();
     let refuse = |env: &mut Env, actions: Vec<(String, Action)>| env.step(&actions).unwrap_err().code;
     assert_eq!(refuse(&mut env, meta("nobody", 1)), ErrorCode::UnknownAgent);
-    assert_eq!(refuse(&mut env, meta("ec", 5)), ErrorCode::InvalidAction);
-    assert_eq!(refuse(&mut env, vec![("ec".into(), Action::Continuous([0.0, 0.0]))]), ErrorCode::WrongActionType);
-    let mut twice = meta("ec", 1);
-    twice.extend(meta("ec", 2));
+    assert_eq!(refuse(&mut env, meta("ec_0", 5)), ErrorCode::InvalidAction);
+    assert_eq!(refuse(&mut env, vec![("ec_0".into(), Action::Continuous([0.0, 0.0]))]), ErrorCode::WrongActionType);
+    let mut twice = meta("ec_0", 1);
+    twice.extend(meta("ec_0", 2));
     assert_eq!(refuse(&mut env, twice), ErrorCode::InvalidAction);
     assert_eq!(env.world().unwrap(), &before);
 
@@ -111,9 +111,9 @@ fn bad_actions_are_refused_without_stepping() {
     .unwrap();
     continuous.reset(Some(0), &[]);
     for bad in [[f32::NAN, 0.0], [0.0, f32::INFINITY], [100.0, 0.0], [0.0, -9.0]] {
-        assert_eq!(refuse(&mut continuous, vec![("ec".into(), Action::Continuous(bad))]), ErrorCode::InvalidAction);
+        assert_eq!(refuse(&mut continuous, vec![("ec_0".into(), Action::Continuous(bad))]), ErrorCode::InvalidAction);
     }
-    assert!(continuous.step(&[("ec".into(), Action::Continuous([1.0, 0.0]))]).is_ok());
+    assert!(continuous.step(&[("ec_0".into(), Action::Continuous([1.0, 0.0]))]).is_ok());
 }
 
 #[test]
@@ -122,7 +122,7 @@ fn same_seed_same_bits_other_seed_differs() {
         let mut env = env("highway", CreateOptions::default());
         let mut replies = vec![format!("{:?}", env.reset(Some(seed), &[]))];
         for k in 0..5u32 {
-            replies.push(format!("{:?}", env.step(&meta("ego", k % 5)).unwrap()));
+            replies.push(format!("{:?}", env.step(&meta("ego_0", k % 5)).unwrap()));
         }
         replies
     };

@@ -22,7 +22,7 @@ fn same_seed_same_bits_other_seed_differs() {
 
 #[test]
 fn ten_minutes_of_dense_traffic_without_a_collision() {
-    let overrides = [("vehicle.ego.driver".to_string(), toml::Value::Table(toml::toml! { kind = "idm" }))];
+    let overrides = [("vehicle.ego_0.driver".to_string(), toml::Value::Table(toml::toml! { kind = "idm" }))];
     let text = crate::scenario::BUILTIN[2].2;
     let scenario = crate::scenario::Scenario::parse("highway.toml", text, &overrides).unwrap();
     let mut world = scenario.build(11);

@@ -1,0 +1,74 @@
+"""highway_arena: PettingZoo and Gymnasium envs of a multi-lane highway world whose
+vehicles follow the driver + bicycle model of Hang et al., served by an arena-server
+over Zenoh.
+
+    import highway_arena
+    env = highway_arena.parallel_env("merge")       # pettingzoo.ParallelEnv
+    observations, infos = env.reset(seed=0)
+    observations, rewards, terminations, truncations, infos = env.step({"ec_0": 1})
+    env.close()
+
+``connect`` defaults to $HIGHWAY_ARENA_CONNECT, else tcp/127.0.0.1:7447 (where
+``arena-server`` listens by default); ``launch_server()`` starts one for you.
+"""
+
+import gymnasium
+from pettingzoo.utils.conversions import parallel_to_aec
+
+from ._errors import (
+    ArenaError,
+    ArenaTimeoutError,
+    EnvClosedError,
+    InvalidActionError,
+    ScenarioError,
+    ServerNotFoundError,
+)
+from ._server import LocalServer, find_server_binary, launch_server
+from .batch import BatchEnv
+from .parallel import ParallelEnv, default_connect
+from .single import GymEnv
+
+__all__ = [
+    "ArenaError",
+    "ArenaTimeoutError",
+    "BatchEnv",
+    "EnvClosedError",
+    "GymEnv",
+    "InvalidActionError",
+    "LocalServer",
+    "ParallelEnv",
+    "ScenarioError",
+    "ServerNotFoundError",
+    "batch_env",
+    "default_connect",
+    "env",
+    "find_server_binary",
+    "gym_env",
+    "launch_server",
+    "parallel_env",
+]
+
+
+for _scenario in ("merge", "overtake", "highway"):
+    # gymnasium.make("highway_arena/merge-v0", connect=...) builds a GymEnv.
+    gymnasium.register(f"highway_arena/{_scenario}-v0", entry_point="highway_arena.single:GymEnv", kwargs={"scenario": _scenario})
+
+
+def parallel_env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwargs) -> ParallelEnv:
+    """A ``pettingzoo.ParallelEnv`` of ``scenario`` on the server at ``connect``."""
+    return ParallelEnv(scenario, connect=connect, render_mode=render_mode, max_cycles=max_cycles, **kwargs)
+
+
+def env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwargs):
+    """The AEC version of ``parallel_env`` (PettingZoo's own ``parallel_to_aec``)."""
+    return parallel_to_aec(parallel_env(scenario, connect, render_mode, max_cycles, **kwargs))
+
+
+def gym_env(scenario="highway", agent=None, connect=None, render_mode=None, **kwargs) -> GymEnv:
+    """A ``gymnasium.Env`` for one learner of ``scenario``."""
+    return GymEnv(scenario, agent=agent, connect=connect, render_mode=render_mode, **kwargs)
+
+
+def batch_env(scenario="highway", num_envs=8, connect=None, **kwargs) -> BatchEnv:
+    """``num_envs`` envs stepped in one round trip per step."""
+    return BatchEnv(scenario, num_envs=num_envs, connect=connect, **kwargs)

@@ -1,0 +1,75 @@
+"""Exceptions raised by highway_arena, and the translation from the Rust client's."""
+
+from __future__ import annotations
+
+import functools
+
+from . import _core
+
+
+class ArenaError(RuntimeError):
+    """An error from highway-arena. ``code`` names what went wrong (a server error code
+    such as ``InvalidAction``, or ``NoServer``, ``Timeout``, ``Zenoh``, ``Protocol``)."""
+
+    def __init__(self, code: str, message: str):
+        super().__init__(message)
+        self.code = code
+
+
+class ServerNotFoundError(ArenaError, ConnectionError):
+    """No arena-server answered at the address given."""
+
+
+class ArenaTimeoutError(ArenaError, TimeoutError):
+    """A request got no reply within the timeout."""
+
+
+class InvalidActionError(ArenaError, ValueError):
+    """An action the env refused: outside its space, of the wrong type, or for an agent
+    that is not live."""
+
+
+class ScenarioError(ArenaError, ValueError):
+    """A scenario the server does not have, or one that does not validate."""
+
+
+class EnvClosedError(ArenaError):
+    """The env was closed (by this client, by idling, or because the server forgot it)."""
+
+
+_BY_CODE = {
+    "NoServer": ServerNotFoundError,
+    "Zenoh": ServerNotFoundError,
+    "Timeout": ArenaTimeoutError,
+    "InvalidAction": InvalidActionError,
+    "WrongActionType": InvalidActionError,
+    "UnknownAgent": InvalidActionError,
+    "AgentNotLive": InvalidActionError,
+    "UnknownScenario": ScenarioError,
+    "InvalidScenario": ScenarioError,
+    "EnvClosed": EnvClosedError,
+    "UnknownEnv": EnvClosedError,
+}
+
+_HINTS = {
+    "AgentNotLive": " (only agents in env.agents may act; reset when env.agents is empty)",
+    "NotReset": " (call reset() before step(), state() or render())",
+}
+
+
+def translate(error: _core.ArenaError) -> ArenaError:
+    code, message = error.args
+    return _BY_CODE.get(code, ArenaError)(code, message + _HINTS.get(code, ""))
+
+
+def translated(function):
+    """Raises our exception types instead of the extension's."""
+
+    @functools.wraps(function)
+    def wrapper(*args, **kwargs):
+        try:
+            return function(*args, **kwargs)
+        except _core.ArenaError as error:
+            raise translate(error) from None
+
+    return wrapper

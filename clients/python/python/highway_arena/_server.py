@@ -1,0 +1,89 @@
+"""Starting a local arena-server for people (and tests) with none running."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pathlib
+import queue
+import shutil
+import socket
+import subprocess
+import threading
+from dataclasses import dataclass
+
+
+@dataclass
+class LocalServer:
+    """A running arena-server: connect to ``endpoint``."""
+
+    endpoint: str
+    process: subprocess.Popen
+
+
+def find_server_binary(binary=None) -> str:
+    """``binary``, else $ARENA_SERVER, else ``arena-server`` on PATH, else the
+    repository's target/{debug,release}/arena-server."""
+    if binary:
+        return str(binary)
+    if os.environ.get("ARENA_SERVER"):
+        return os.environ["ARENA_SERVER"]
+    found = shutil.which("arena-server")
+    if found:
+        return found
+    here = pathlib.Path(__file__).resolve()
+    for root in [*here.parents, pathlib.Path.cwd()]:
+        for profile in ("debug", "release"):
+            candidate = root / "target" / profile / "arena-server"
+            if candidate.is_file():
+                return str(candidate)
+    raise FileNotFoundError(
+        "cannot find arena-server: build it with `cargo build -p arena-server`, put it on PATH, "
+        "set $ARENA_SERVER, or pass binary=..."
+    )
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@contextlib.contextmanager
+def launch_server(binary=None, listen=None, args=(), timeout=30.0):
+    """Starts an arena-server listening on ``listen`` (default: a free 127.0.0.1 port),
+    yields a ``LocalServer`` once it serves, and stops it (SIGTERM) on exit."""
+    endpoint = listen or f"tcp/127.0.0.1:{_free_port()}"
+    command = [find_server_binary(binary), "--listen", endpoint, *args]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines: queue.Queue = queue.Queue()
+
+    def pump():
+        for line in process.stdout:
+            lines.put(line)
+        lines.put(None)
+
+    threading.Thread(target=pump, daemon=True).start()
+    try:
+        while True:
+            try:
+                line = lines.get(timeout=timeout)
+            except queue.Empty:
+                raise TimeoutError(f"arena-server did not start serving within {timeout} s: {' '.join(command)}") from None
+            if line is None:
+                error = process.stderr.read() if process.stderr else ""
+                raise RuntimeError(f"arena-server exited before serving ({' '.join(command)}): {error.strip()}")
+            if "serving on" in line:
+                break
+        yield LocalServer(endpoint=endpoint, process=process)
+    finally:
+        if process.poll() is None:
+            process.terminate()
+            try:
+                process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+        for stream in (process.stdout, process.stderr):
+            if stream:
+                stream.close()

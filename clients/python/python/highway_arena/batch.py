@@ -1,0 +1,66 @@
+"""Many envs of one scenario on one server, stepped in one round trip each step
+(the server spreads a batch over its cores). Finished envs reset themselves."""
+
+from __future__ import annotations
+
+from . import _convert
+from ._errors import translate, translated
+from . import _core
+from .parallel import Connection
+
+
+class BatchEnv:
+    """``num_envs`` copies of a scenario; env ``i`` is seeded ``seed + i`` and re-seeded
+    from its own stream when its episode ends."""
+
+    def __init__(self, scenario="highway", num_envs=8, connect=None, prefix="arena", timeout=30.0, **options):
+        if num_envs < 1:
+            raise ValueError(f"num_envs must be at least 1, not {num_envs}")
+        self._connection = Connection(connect, prefix, timeout)
+        self._envs = []
+        try:
+            for _ in range(num_envs):
+                self._envs.append(self._connection.create(scenario, **options))
+            specs = self._envs[0].specs()
+        except BaseException:
+            self.close()
+            raise
+        self.possible_agents = list(specs["possible_agents"])
+        self.dt = specs["dt"]
+        self.action_spaces = {a: _convert.space(s) for a, s in specs["action_spaces"].items()}
+        self.num_envs = num_envs
+
+    @translated
+    def reset(self, seed=0):
+        return [
+            {a: _convert.observation(o) for a, o in env.reset(seed + i, None)[0].items()}
+            for i, env in enumerate(self._envs)
+        ]
+
+    @translated
+    def step(self, actions):
+        """``actions``: one dict per env. Returns one (observations, rewards,
+        terminations, truncations, infos) per env; an env whose agents all finished is
+        reset, and its tuple's observations are the new episode's first."""
+        wire = [
+            {agent: _convert.action(a, self.action_spaces[agent], agent) for agent, a in per_env.items()}
+            for per_env in actions
+        ]
+        results = self._connection.client.step_batch(self._envs, wire)
+        out = []
+        for env, result in zip(self._envs, results):
+            if isinstance(result, _core.ArenaError):
+                raise translate(result)
+            observations, rewards, terminations, truncations, infos, agents = result
+            if not agents:
+                observations, _ = env.reset(None, None)
+            out.append(
+                ({a: _convert.observation(o) for a, o in observations.items()}, rewards, terminations, truncations, infos)
+            )
+        return out
+
+    def close(self):
+        for env in self._envs:
+            translated(env.close)()
+        self._envs = []
+        self._connection.close()

@@ -1,0 +1,179 @@
+"""A PettingZoo ParallelEnv whose world runs on an arena-server."""
+
+from __future__ import annotations
+
+import os
+
+import gymnasium
+import numpy as np
+from pettingzoo import ParallelEnv as _ParallelEnv
+
+from . import _convert, _core
+from ._errors import translated
+
+DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
+RENDER_MODES = ["human", "rgb_array", "ansi"]
+
+
+def default_connect() -> str:
+    """$HIGHWAY_ARENA_CONNECT, else tcp/127.0.0.1:7447 (arena-server's default)."""
+    return os.environ.get("HIGHWAY_ARENA_CONNECT", DEFAULT_CONNECT)
+
+
+class Connection:
+    """One Zenoh session and the server picked on it."""
+
+    @translated
+    def __init__(self, connect=None, prefix="arena", timeout=10.0):
+        endpoints = [connect or default_connect()] if isinstance(connect, (str, type(None))) else list(connect)
+        self.client = _core.Client(endpoints, prefix=prefix, timeout=float(timeout))
+        self.server = self.client.pick_server()
+
+    @translated
+    def create(self, scenario, scenario_text=None, overrides=None, **options):
+        pairs = [(str(k), v) for k, v in (overrides or {}).items()]
+        return self.client.create_env(self.server, scenario, scenario_text, pairs, **options)
+
+    @translated
+    def close(self):
+        self.client.close()
+
+
+class ParallelEnv(_ParallelEnv):
+    """PettingZoo Parallel API over an env on a server. Arguments: ``scenario`` (a name
+    the server knows, or the name of ``scenario_text``), ``connect`` (endpoint),
+    ``render_mode`` ('rgb_array' or 'ansi'), ``max_cycles``, ``action_type`` ('meta' or
+    'continuous'), ``observation`` ('kinematics' or 'kinematics_with_mask'), ``expert``
+    ('nash' or 'stackelberg': infos say what the built-in AV would do), ``seed`` (used by
+    the first ``reset()`` that is given none, for reproducible runs), and scenario
+    overrides as keyword arguments with dots written as double underscores
+    (``vehicle__ac__speed=18.0``) or in ``overrides={"vehicle.ac.speed": 18.0}``."""
+
+    metadata = {"render_modes": list(RENDER_MODES), "is_parallelizable": True}
+
+    def __init__(
+        self,
+        scenario="merge",
+        connect=None,
+        render_mode=None,
+        max_cycles=None,
+        action_type=None,
+        observation=None,
+        expert=None,
+        scenario_text=None,
+        overrides=None,
+        prefix="arena",
+        timeout=10.0,
+        render_size=None,
+        seed=None,
+        **dotted,
+    ):
+        # Kept so a pickled env (SuperSuit's vector envs copy them) rebuilds its own.
+        self._init_args = {key: value for key, value in locals().items() if key not in ("self", "__class__")}
+        if render_mode is not None and render_mode not in RENDER_MODES:
+            raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, not {render_mode!r}")
+        all_overrides = dict(overrides or {})
+        all_overrides.update({key.replace("__", "."): value for key, value in dotted.items()})
+        self._connection = Connection(connect, prefix, timeout)
+        try:
+            self._env = self._connection.create(
+                scenario,
+                scenario_text,
+                all_overrides,
+                action_type=action_type,
+                observation=observation,
+                max_cycles=max_cycles,
+                render_size=render_size,
+                expert=expert,
+            )
+            specs = self._env.specs()
+        except BaseException:
+            self._connection.close()
+            raise
+        self._closed = False
+        self._first_seed = seed
+        self.render_mode = render_mode
+        self.possible_agents = list(specs["possible_agents"])
+        self.agents = []
+        self.dt = specs["dt"]
+        self.max_cycles = specs["max_cycles"]
+        self.metadata = {
+            "render_modes": list(RENDER_MODES),
+            "name": f"highway_arena_{scenario}",
+            "is_parallelizable": True,
+            "render_fps": specs["render_fps"],
+        }
+        self.observation_spaces = {a: _convert.space(s) for a, s in specs["observation_spaces"].items()}
+        self.action_spaces = {a: _convert.space(s) for a, s in specs["action_spaces"].items()}
+        self.state_space = _convert.space(specs["state_space"])
+
+    def observation_space(self, agent):
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent):
+        return self.action_spaces[agent]
+
+    @translated
+    def reset(self, seed=None, options=None):
+        if seed is None:
+            seed, self._first_seed = self._first_seed, None
+        if seed is not None and not 0 <= int(seed) < 2**64:
+            raise ValueError(f"seed must be in [0, 2**64), not {seed}")
+        observations, infos = self._env.reset(None if seed is None else int(seed), options)
+        self.agents = [a for a in self.possible_agents if a in observations]
+        return {a: _convert.observation(o) for a, o in observations.items()}, infos
+
+    @translated
+    def step(self, actions):
+        wire = {}
+        for agent, action in actions.items():
+            if agent not in self.action_spaces:
+                raise ValueError(f"no agent named {agent!r}; the agents are {self.possible_agents}")
+            wire[agent] = _convert.action(action, self.action_spaces[agent], agent)
+        observations, rewards, terminations, truncations, infos, agents = self._env.step(wire)
+        self.agents = list(agents)
+        observations = {a: _convert.observation(o) for a, o in observations.items()}
+        return observations, rewards, terminations, truncations, infos
+
+    @translated
+    def render(self):
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'ansi'")
+            return None
+        if self.render_mode == "human":
+            # The terminal is this env's screen: the ansi picture, redrawn in place.
+            print("\x1b[2J\x1b[H" + self._env.render("ansi")[1], flush=True)
+            return None
+        frame = self._env.render(self.render_mode)
+        if frame[0] == "ansi":
+            return frame[1]
+        _, height, width, data = frame
+        return np.frombuffer(data, dtype=np.uint8).reshape(height, width, 3).copy()
+
+    @translated
+    def state(self):
+        return _convert.observation(self._env.state())
+
+    def __getstate__(self):
+        return self._init_args
+
+    def __setstate__(self, args):
+        args = dict(args)
+        dotted = args.pop("dotted", {})
+        self.__init__(**args, **dotted)
+
+    def close(self):
+        """Closes the env and its Zenoh session; calling it again does nothing."""
+        if getattr(self, "_closed", True):
+            return
+        self._closed = True
+        try:
+            translated(self._env.close)()
+        finally:
+            self._connection.close()
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:
+            pass

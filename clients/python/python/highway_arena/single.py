@@ -1,0 +1,67 @@
+"""A Gymnasium Env for one learner; the scenario's other vehicles keep their drivers
+(other learner vehicles are driven by IDM)."""
+
+from __future__ import annotations
+
+import gymnasium
+from gymnasium.envs.registration import EnvSpec
+
+from .parallel import ParallelEnv
+
+
+class GymEnv(gymnasium.Env):
+    """One agent of a scenario as a ``gymnasium.Env``. Takes ParallelEnv's arguments,
+    plus ``agent`` (default: the scenario's first learner)."""
+
+    # Read by gymnasium.make before an instance exists; instances add render_fps.
+    metadata = {"render_modes": ["human", "rgb_array", "ansi"]}
+
+    def __init__(self, scenario="highway", agent=None, render_mode=None, **kwargs):
+        # A spec lets gymnasium.make (and check_env's render checks) build siblings.
+        self.spec = EnvSpec(
+            id=f"highway_arena/{scenario}-v0",
+            entry_point="highway_arena.single:GymEnv",
+            kwargs={"scenario": scenario, "agent": agent, **kwargs},
+        )
+        overrides = dict(kwargs.pop("overrides", None) or {})
+        probe = ParallelEnv(scenario, render_mode=render_mode, overrides=overrides, **kwargs)
+        agents = probe.possible_agents
+        chosen = agent if agent is not None else (agents[0] if agents else None)
+        if chosen not in agents:
+            probe.close()
+            raise ValueError(f"scenario {scenario!r} has no learner named {chosen!r}; its learners are {agents}")
+        others = [a for a in agents if a != chosen]
+        if others:
+            # The other learners' vehicles drive themselves, as background traffic does.
+            probe.close()
+            overrides.update({f"vehicle.{a}.driver": '{ kind = "idm" }' for a in others})
+            probe = ParallelEnv(scenario, render_mode=render_mode, overrides=overrides, **kwargs)
+        self._parallel = probe
+        self.agent = chosen
+        self.render_mode = render_mode
+        self.observation_space = probe.observation_space(chosen)
+        self.action_space = probe.action_space(chosen)
+        self.metadata = dict(probe.metadata)
+        self.dt = probe.dt
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        observations, infos = self._parallel.reset(seed=seed, options=options)
+        return observations[self.agent], infos[self.agent]
+
+    def step(self, action):
+        observations, rewards, terminations, truncations, infos = self._parallel.step({self.agent: action})
+        return (
+            observations[self.agent],
+            float(rewards[self.agent]),
+            bool(terminations[self.agent]),
+            bool(truncations[self.agent]),
+            infos[self.agent],
+        )
+
+    def render(self):
+        return self._parallel.render()
+
+    def close(self):
+        self._parallel.close()
+        super().close()

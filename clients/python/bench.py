@@ -1,0 +1,85 @@
+"""Simulated seconds per wall second through the Python API on highway.toml (set up
+like highway-env's highway-v0): one ParallelEnv stepped through the PettingZoo API, and
+batches of envs stepped in one round trip each (highway_arena.batch_env).
+
+    python clients/python/bench.py --binary target/release/arena-server
+
+Without --connect it launches its own arena-server (the --binary given, else the one
+highway_arena.launch_server finds). Prints a table, or JSON with --json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import highway_arena
+
+
+def single(connect: str, seconds: float) -> float:
+    env = highway_arena.parallel_env("highway", connect=connect)
+    env.reset(seed=0)
+    steps, episodes = 0, 0
+    started = time.perf_counter()
+    while time.perf_counter() - started < seconds:
+        env.step({agent: 1 for agent in env.agents})
+        steps += 1
+        if not env.agents:
+            episodes += 1
+            env.reset(seed=episodes)
+    elapsed = time.perf_counter() - started
+    env.close()
+    return steps * env.dt / elapsed
+
+
+def batched(connect: str, num_envs: int, seconds: float) -> float:
+    envs = highway_arena.batch_env("highway", num_envs=num_envs, connect=connect)
+    envs.reset(seed=0)
+    actions = [{"ego_0": 1} for _ in range(num_envs)]
+    rounds = 0
+    started = time.perf_counter()
+    while time.perf_counter() - started < seconds:
+        envs.step(actions)
+        rounds += 1
+    elapsed = time.perf_counter() - started
+    envs.close()
+    return rounds * num_envs * envs.dt / elapsed
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--connect", help="endpoint of a running arena-server (default: launch one)")
+    parser.add_argument("--binary", help="arena-server binary to launch (default: found as launch_server finds it)")
+    parser.add_argument("--seconds", type=float, default=5.0, help="wall seconds per measurement (default 5)")
+    parser.add_argument("--batches", default="16,64", help="comma-separated batch sizes (default 16,64)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    args = parser.parse_args()
+    sizes = [int(size) for size in args.batches.split(",") if size]
+
+    def run(connect: str) -> dict:
+        figures = {"single_sim_s_per_s": None, "batch": {}}
+        print("one env through the PettingZoo API ...", file=sys.stderr)
+        figures["single_sim_s_per_s"] = single(connect, args.seconds)
+        for size in sizes:
+            print(f"batch of {size} envs ...", file=sys.stderr)
+            figures["batch"][str(size)] = batched(connect, size, args.seconds)
+        return figures
+
+    if args.connect:
+        figures = run(args.connect)
+    else:
+        with highway_arena.launch_server(binary=args.binary) as server:
+            figures = run(server.endpoint)
+    if args.json:
+        print(json.dumps(figures, indent=2))
+    else:
+        print(f"one env:       {figures['single_sim_s_per_s']:9.1f} simulated s per wall s")
+        for size, rate in figures["batch"].items():
+            print(f"batch of {size:>3}:  {rate:9.1f} simulated s per wall s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

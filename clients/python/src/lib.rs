@@ -111,7 +111,9 @@ impl Client {
             Some("meta") => Some(ActionType::Meta),
             Some("continuous") => Some(ActionType::Continuous),
             Some(other) => {
-                return Err(PyValueError::new_err(format!("action_type must be 'meta' or 'continuous', not {other:?}")));
+                return Err(PyValueError::new_err(format!(
+                    "action_type must be 'meta' or 'continuous', not {other:?}"
+                )));
             }
         };
         let observation = match observation.as_deref() {

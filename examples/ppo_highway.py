@@ -14,6 +14,7 @@ import argparse
 import numpy as np
 import supersuit as ss
 from stable_baselines3 import PPO
+from stable_baselines3.common.utils import set_random_seed
 
 import highway_arena
 
@@ -50,7 +51,9 @@ def main() -> None:
         from stable_baselines3.common.vec_env import VecNormalize
 
         vec = VecNormalize(vec, norm_obs=False, norm_reward=True)
-        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, verbose=0, seed=0)
+        # SuperSuit's ConcatVecEnv has no seed(); seed torch and numpy, not the env.
+        set_random_seed(0)
+        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, verbose=0)
         before = mean_episode_reward(model, connect, args.episodes)
         print(f"mean episode reward before training: {before:.1f}")
         model.learn(total_timesteps=args.timesteps, progress_bar=False)

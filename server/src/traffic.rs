@@ -36,21 +36,26 @@ pub struct IdmParams {
     pub lane_change_duration: f64,
 }
 
+impl IdmParams {
+    /// highway-env's constants (the default).
+    pub const HIGHWAY_ENV: IdmParams = IdmParams {
+        max_accel: 3.0,
+        comfortable_decel: 5.0,
+        jam_distance: 10.0,
+        time_headway: 1.5,
+        exponent: 4.0,
+        accel_limit: 6.0,
+        politeness: 0.0,
+        lane_change_gain: 0.2,
+        max_imposed_braking: 2.0,
+        lane_change_period: 1.0,
+        lane_change_duration: 4.0,
+    };
+}
+
 impl Default for IdmParams {
     fn default() -> Self {
-        IdmParams {
-            max_accel: 3.0,
-            comfortable_decel: 5.0,
-            jam_distance: 10.0,
-            time_headway: 1.5,
-            exponent: 4.0,
-            accel_limit: 6.0,
-            politeness: 0.0,
-            lane_change_gain: 0.2,
-            max_imposed_braking: 2.0,
-            lane_change_period: 1.0,
-            lane_change_duration: 4.0,
-        }
+        IdmParams::HIGHWAY_ENV
     }
 }
 
@@ -117,19 +122,7 @@ pub fn mobil_incentive(params: &IdmParams, ego: Car, length: f64, current: Gap, 
 mod tests {
     use super::*;
 
-    const P: IdmParams = IdmParams {
-        max_accel: 3.0,
-        comfortable_decel: 5.0,
-        jam_distance: 10.0,
-        time_headway: 1.5,
-        exponent: 4.0,
-        accel_limit: 6.0,
-        politeness: 0.0,
-        lane_change_gain: 0.2,
-        max_imposed_braking: 2.0,
-        lane_change_period: 1.0,
-        lane_change_duration: 4.0,
-    };
+    const P: IdmParams = IdmParams::HIGHWAY_ENV;
 
     fn car(s: f64, speed: f64) -> Car {
         Car { s, speed, target_speed: 25.0 }
@@ -137,7 +130,23 @@ mod tests {
 
     #[test]
     fn defaults_are_highway_envs() {
-        assert_eq!(IdmParams::default(), P);
+        // highway-env 1.x IDMVehicle: COMFORT_ACC_MAX, -COMFORT_ACC_MIN, DISTANCE_WANTED,
+        // TIME_WANTED, DELTA, ACC_MAX, POLITENESS, LANE_CHANGE_MIN_ACC_GAIN,
+        // LANE_CHANGE_MAX_BRAKING_IMPOSED, LANE_CHANGE_DELAY.
+        let d = IdmParams::default();
+        let values = [
+            d.max_accel,
+            d.comfortable_decel,
+            d.jam_distance,
+            d.time_headway,
+            d.exponent,
+            d.accel_limit,
+            d.politeness,
+            d.lane_change_gain,
+            d.max_imposed_braking,
+            d.lane_change_period,
+        ];
+        assert_eq!(values, [3.0, 5.0, 10.0, 1.5, 4.0, 6.0, 0.0, 0.2, 2.0, 1.0]);
     }
 
     #[test]

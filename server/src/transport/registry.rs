@@ -310,9 +310,14 @@ impl Registry {
         seq: u64,
         f: impl FnOnce(&mut Slot) -> Result<ReplyBody, ErrorReply>,
     ) -> Result<ReplyBody, ErrorReply> {
-        let slot = self.slot(client, env)?;
-        let mut slot = lock(&slot);
-        slot.last_used = Instant::now();
+        self.with_env(client, env, |slot| Self::once_per_seq(slot, seq, f))
+    }
+
+    fn once_per_seq(
+        slot: &mut Slot,
+        seq: u64,
+        f: impl FnOnce(&mut Slot) -> Result<ReplyBody, ErrorReply>,
+    ) -> Result<ReplyBody, ErrorReply> {
         match &slot.last {
             Some((last, cached)) if *last == seq => return Ok(cached.clone()),
             Some((last, _)) if seq < *last => {
@@ -324,7 +329,7 @@ impl Registry {
             }
             _ => {}
         }
-        let body = f(&mut slot).unwrap_or_else(ReplyBody::Error);
+        let body = f(slot).unwrap_or_else(ReplyBody::Error);
         slot.last = Some((seq, body.clone()));
         Ok(body)
     }

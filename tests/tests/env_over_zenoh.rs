@@ -298,3 +298,21 @@ async fn envs_of_a_client_that_leaves_are_reclaimed() {
     }
     panic!("the env outlived its client");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn idle_envs_are_reclaimed_and_say_so() {
+    let limits =
+        arena_server::transport::Limits { idle_timeout: std::time::Duration::from_millis(300), ..Default::default() };
+    let harness = common::start_with(limits).await;
+    let client = harness.client().await;
+    let mut env = harness.env(&client, "merge").await;
+    env.reset(Some(0), vec![]).await.unwrap();
+    for _ in 0..200 {
+        if harness.server.registry().is_empty() {
+            assert_eq!(code(env.step(vec![]).await), ErrorCode::EnvClosed);
+            return;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+    panic!("an idle env was never reclaimed");
+}

@@ -71,7 +71,7 @@ impl fmt::Display for ClientError {
             ),
             ClientError::NoServer { prefix } => write!(
                 f,
-                "no arena-server found under prefix '{prefix}'; start one with `arena-server` or pass --connect with its endpoint"
+                "no arena-server found under prefix '{prefix}'; start one with `arena-server`, or point --connect (Python: connect=) at its endpoint"
             ),
             ClientError::Server(reply) => write!(f, "{reply}"),
             ClientError::Protocol(message) => write!(f, "protocol: {message}"),

@@ -47,7 +47,8 @@ def main() -> None:
         parallel = highway_arena.parallel_env("highway", connect=connect)
         vec = ss.pettingzoo_env_to_vec_env_v1(parallel)
         vec = ss.concat_vec_envs_v1(vec, args.envs, num_cpus=0, base_class="stable_baselines3")
-        # Rewards are minus the paper's cost J, which spans orders of magnitude.
+        # Rewards are minus the paper's cost J, which spans orders of magnitude. (SB3 warns
+        # here that `render_mode` is not defined: SuperSuit's ConcatVecEnv has no get_attr.)
         from stable_baselines3.common.vec_env import VecNormalize
 
         vec = VecNormalize(vec, norm_obs=False, norm_reward=True)

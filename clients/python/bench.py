@@ -53,7 +53,9 @@ def main() -> int:
     parser.add_argument("--connect", help="endpoint of a running arena-server (default: launch one)")
     parser.add_argument("--binary", help="arena-server binary to launch (default: found as launch_server finds it)")
     parser.add_argument("--seconds", type=float, default=5.0, help="wall seconds per measurement (default 5)")
-    parser.add_argument("--batches", default="16,64", help="comma-separated batch sizes (default 16,64)")
+    parser.add_argument(
+        "--batch", "--batches", dest="batches", default="16,64,128", help="comma-separated batch sizes (default 16,64,128)"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args()
     sizes = [int(size) for size in args.batches.split(",") if size]

@@ -7,6 +7,9 @@ use std::time::Duration;
 /// The endpoint a server listens on and a client connects to when none is given.
 pub const DEFAULT_ENDPOINT: &str = "tcp/127.0.0.1:7447";
 
+/// Seconds a client waits for a reply by default, in every client (Rust, CLI, Python).
+pub const DEFAULT_TIMEOUT: f64 = 10.0;
+
 /// Which side of the connection a process is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Role {
@@ -53,7 +56,7 @@ pub struct ConnectionFlags {
     #[arg(long, value_name = "ENDPOINT")]
     pub connect: Vec<String>,
     /// Key-expression prefix every server and client of one deployment shares.
-    #[arg(long, default_value = "arena")]
+    #[arg(long, default_value = crate::keys::DEFAULT_PREFIX)]
     pub prefix: String,
     /// A Zenoh configuration file (JSON5); the flags above are applied on top of it.
     #[arg(long, value_name = "FILE")]
@@ -62,7 +65,7 @@ pub struct ConnectionFlags {
     #[arg(long)]
     pub scout: bool,
     /// Seconds a client waits for each reply before retrying.
-    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    #[arg(long, default_value_t = DEFAULT_TIMEOUT, value_name = "SECONDS")]
     pub timeout: f64,
     /// How many times a client resends a request that timed out (steps keep their
     /// sequence number, so a retry never steps twice).
@@ -76,10 +79,10 @@ impl Default for ConnectionFlags {
             mode: Mode::Peer,
             listen: Vec::new(),
             connect: Vec::new(),
-            prefix: "arena".to_string(),
+            prefix: crate::keys::DEFAULT_PREFIX.to_string(),
             zenoh_config: None,
             scout: false,
-            timeout: 10.0,
+            timeout: DEFAULT_TIMEOUT,
             retries: 2,
         }
     }
@@ -93,7 +96,11 @@ impl ConnectionFlags {
 
     /// The per-attempt reply timeout.
     pub fn timeout(&self) -> Duration {
-        Duration::from_secs_f64(if self.timeout.is_finite() && self.timeout > 0.0 { self.timeout } else { 10.0 })
+        Duration::from_secs_f64(if self.timeout.is_finite() && self.timeout > 0.0 {
+            self.timeout
+        } else {
+            DEFAULT_TIMEOUT
+        })
     }
 
     /// The endpoints the session will listen on (server) or connect to (client).

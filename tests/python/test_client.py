@@ -2,6 +2,8 @@
 on bad input that never hang past the timeout, fresh arrays, idempotent close, timing."""
 
 import pickle
+import signal
+import threading
 import time
 
 import numpy as np
@@ -10,16 +12,52 @@ import pytest
 import highway_arena
 
 
-def test_no_server_at_the_address_raises_quickly_with_advice():
+def test_no_server_at_the_address_raises_within_the_timeout_with_advice():
     started = time.monotonic()
-    with pytest.raises(highway_arena.ServerNotFoundError, match="arena-server"):
-        highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1", timeout=1.0)
-    assert time.monotonic() - started < 10.0
+    with pytest.raises(highway_arena.ServerNotFoundError, match="tcp/127.0.0.1:1 .*launch_server") as raised:
+        highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1", timeout=2.0)
+    assert time.monotonic() - started < 2.0
+    assert raised.value.code == "NoServer" and isinstance(raised.value, ConnectionError)
 
 
-def test_malformed_address_is_refused():
-    with pytest.raises(highway_arena.ArenaError):
+def test_malformed_or_unusable_addresses_are_refused_with_the_form_to_use():
+    with pytest.raises(highway_arena.InvalidEndpointError, match="e.g. tcp/127.0.0.1:7447"):
         highway_arena.parallel_env("merge", connect="not an endpoint", timeout=1.0)
+    # Well formed, but this build of Zenoh speaks TCP only; no source paths in the message.
+    with pytest.raises(ValueError, match=r"^cannot open a Zenoh session to udp/127.0.0.1:7447: [^/]*udp[^/]*; "):
+        highway_arena.parallel_env("merge", connect="udp/127.0.0.1:7447", timeout=1.0)
+
+
+def test_a_server_that_stops_answering_times_out_within_the_timeout_without_holding_the_gil():
+    with highway_arena.launch_server() as stopped:
+        env = highway_arena.parallel_env("merge", connect=stopped.endpoint, timeout=1.5)
+        env.reset(seed=0)
+        stopped.process.send_signal(signal.SIGSTOP)
+        try:
+            outcome = {}
+
+            def step():
+                started = time.monotonic()
+                try:
+                    env.step({"ec_0": 1})
+                except highway_arena.ArenaTimeoutError as error:
+                    outcome["error"] = error
+                outcome["waited"] = time.monotonic() - started
+
+            stepper = threading.Thread(target=step)
+            stepper.start()
+            # While the step waits on the network, this thread keeps running Python.
+            spins = 0
+            while stepper.is_alive():
+                spins += 1
+                time.sleep(0.001)
+            assert spins > 100
+            assert isinstance(outcome.get("error"), TimeoutError), outcome
+            assert "no reply" in str(outcome["error"])
+            assert outcome["waited"] < 1.5 + 0.2
+        finally:
+            stopped.process.send_signal(signal.SIGCONT)
+        env.close()
 
 
 def test_unknown_scenario_names_the_ones_there_are():
@@ -38,19 +76,22 @@ def test_inline_scenario_text_is_validated_like_a_file():
 
 
 def test_actions_outside_the_space_or_for_finished_agents_raise_value_errors():
-    env = highway_arena.parallel_env("highway", max_cycles=2)
+    env = highway_arena.parallel_env("highway", max_cycles=3)
     env.reset(seed=0)
-    with pytest.raises(ValueError, match="outside Discrete"):
-        env.step({"ego_0": 7})
-    with pytest.raises(ValueError, match="expected an int"):
-        env.step({"ego_0": 1.5})
-    with pytest.raises(ValueError, match="no agent named"):
+    refused = [(7, "outside Discrete"), (-1, "outside Discrete"), (1.5, "an int"), ("1", "an int"), (True, "an int")]
+    for bad, message in refused:
+        with pytest.raises(highway_arena.InvalidActionError, match=f"agent 'ego_0': .*{message}"):
+            env.step({"ego_0": bad})
+    with pytest.raises(highway_arena.InvalidActionError, match="no agent named 'nobody'; the agents are"):
         env.step({"nobody": 1})
-    env.step({"ego_0": 1})
+    # Ints of every kind: Python, numpy scalars, one-element numpy arrays.
+    env.step({"ego_0": np.int64(1)})
+    env.step({"ego_0": np.array([1], dtype=np.int32)})
     env.step({"ego_0": 1})
     assert env.agents == []
-    with pytest.raises(highway_arena.InvalidActionError, match="env.agents"):
+    with pytest.raises(highway_arena.InvalidActionError, match="env.agents") as raised:
         env.step({"ego_0": 1})
+    assert raised.value.code == "AgentNotLive" and isinstance(raised.value, ValueError)
     env.close()
 
 
@@ -59,6 +100,11 @@ def test_continuous_actions_accept_lists_and_arrays_and_refuse_out_of_range():
     env.reset(seed=0)
     env.step({"ec_0": [1.0, 0.0]})
     env.step({"ec_0": np.array([0.5, -0.5], dtype=np.float32)})
+    env.step({"ec_0": (np.float64(0.1), 0)})
+    with pytest.raises(highway_arena.InvalidActionError, match="expected 2 floats"):
+        env.step({"ec_0": [0.0, 0.0, 0.0]})
+    with pytest.raises(highway_arena.InvalidActionError, match="expected 2 floats"):
+        env.step({"ec_0": "fast"})
     with pytest.raises(highway_arena.InvalidActionError, match="outside"):
         env.step({"ec_0": np.array([50.0, 0.0])})
     with pytest.raises(highway_arena.InvalidActionError, match="finite"):
@@ -83,6 +129,12 @@ def test_close_is_idempotent_and_timing_is_exposed():
     assert env.dt == 1.0 and env.metadata["render_fps"] == 1
     env.close()
     env.close()
+    with pytest.raises(highway_arena.EnvClosedError, match="closed"):
+        env.reset(seed=0)
+    aec = highway_arena.env("merge")
+    assert aec.dt == pytest.approx(0.1) and aec.metadata["render_fps"] == 10 and aec.max_cycles == 200
+    aec.close()
+    aec.close()
     merge = highway_arena.gym_env("merge")
     assert merge.dt == pytest.approx(0.1) and merge.metadata["render_fps"] == 10
     merge.close()
@@ -121,6 +173,46 @@ def test_batch_env_matches_single_envs():
     single.close()
 
 
+def test_threads_sharing_an_env_take_turns():
+    env = highway_arena.parallel_env("highway")
+    env.reset(seed=0)
+    errors = []
+
+    def run(call, times):
+        try:
+            for _ in range(times):
+                call()
+        except Exception as error:  # reported below
+            errors.append(error)
+
+    threads = [threading.Thread(target=run, args=(lambda: env.step({"ego_0": 1}), 10))]
+    threads += [threading.Thread(target=run, args=(env.state, 100)) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=60)
+    assert not any(thread.is_alive() for thread in threads) and not errors
+    env.close()
+
+
+def test_a_batch_naming_one_env_twice_is_refused():
+    batch = highway_arena.batch_env("merge", num_envs=1)
+    batch.reset(seed=0)
+    env = batch._envs[0]
+    with pytest.raises(ValueError, match="twice"):
+        batch._connection.client.step_batch([env, env], [{}, {}])
+    batch.close()
+
+
 def test_launch_server_reports_a_missing_binary():
     with pytest.raises(FileNotFoundError), highway_arena.launch_server(binary="/nonexistent/arena-server"):
         pass
+
+
+def test_connection_defaults_are_the_protocol_crates():
+    from highway_arena import _core, batch, parallel
+
+    assert (_core.DEFAULT_CONNECT, _core.DEFAULT_PREFIX, _core.DEFAULT_TIMEOUT) == ("tcp/127.0.0.1:7447", "arena", 10.0)
+    assert parallel.DEFAULT_CONNECT is _core.DEFAULT_CONNECT
+    assert parallel.DEFAULT_TIMEOUT is _core.DEFAULT_TIMEOUT
+    assert batch.DEFAULT_TIMEOUT is _core.DEFAULT_TIMEOUT

@@ -7,8 +7,9 @@
 use std::sync::Mutex;
 
 use arena_client::blocking::{Client as BlockingClient, Env as BlockingEnv};
-use arena_client::{ClientError, CreateOptions, OptionValue, ScenarioSource};
-use arena_protocol::session::{ConnectionFlags, Mode};
+use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSource};
+use arena_protocol::keys::DEFAULT_PREFIX;
+use arena_protocol::session::{ConnectionFlags, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
     Action, ActionType, ExpertGame, Frame, Info, InfoValue, Observation, ObservationKind, RenderMode, Space, StepReply,
     Tensor, TensorData,
@@ -52,7 +53,7 @@ struct Client {
 #[pymethods]
 impl Client {
     #[new]
-    #[pyo3(signature = (connect, prefix = "arena".to_string(), timeout = 10.0, retries = 2, mode = "peer".to_string()))]
+    #[pyo3(signature = (connect, prefix = DEFAULT_PREFIX.to_string(), timeout = DEFAULT_TIMEOUT, retries = 2, mode = "peer".to_string()))]
     fn new(
         py: Python<'_>,
         connect: Vec<String>,
@@ -139,7 +140,7 @@ impl Client {
         };
         let options = CreateOptions { overrides, action_type, observation, max_cycles, render_size, expert };
         let env = py.detach(|| self.inner.create_env(&server, source, options)).map_err(to_py_err)?;
-        Ok(Env { inner: Mutex::new(Some(env)) })
+        Ok(Env { specs: env.specs().clone(), inner: Mutex::new(Some(env)) })
     }
 
     /// Steps many envs of this client in one round trip; returns, per env, a step result
@@ -153,13 +154,30 @@ impl Client {
         if envs.len() != actions.len() {
             return Err(PyValueError::new_err(format!("{} envs but {} action dicts", envs.len(), actions.len())));
         }
-        let actions = actions.iter().map(parse_actions).collect::<PyResult<Vec<_>>>()?;
-        let mut guards: Vec<_> = envs.iter().map(|env| lock(&env.inner)).collect();
-        let mut handles = Vec::with_capacity(guards.len());
-        for guard in guards.iter_mut() {
-            handles.push(guard.as_mut().ok_or_else(closed_error)?);
+        let envs: Vec<&Env> = envs.iter().map(|env| &**env).collect();
+        let mut addresses: Vec<usize> = envs.iter().map(|env| std::ptr::from_ref(*env) as usize).collect();
+        addresses.sort_unstable();
+        if addresses.windows(2).any(|pair| pair[0] == pair[1]) {
+            return Err(PyValueError::new_err("the same env appears twice in one batch: step each env once per batch"));
         }
-        let results = py.detach(|| self.inner.step_batch(&mut handles, actions)).map_err(to_py_err)?;
+        let actions = actions.iter().map(parse_actions).collect::<PyResult<Vec<_>>>()?;
+        let results = py.detach(|| {
+            // Locks are taken in address order (two batches sharing envs cannot deadlock)
+            // and without the GIL, like every other lock of an env.
+            let mut order: Vec<usize> = (0..envs.len()).collect();
+            order.sort_unstable_by_key(|&i| std::ptr::from_ref(envs[i]) as usize);
+            let mut guards: Vec<Option<std::sync::MutexGuard<'_, Option<BlockingEnv>>>> =
+                envs.iter().map(|_| None).collect();
+            for i in order {
+                guards[i] = Some(lock(&envs[i].inner));
+            }
+            let mut handles = Vec::with_capacity(guards.len());
+            for guard in guards.iter_mut().flatten() {
+                handles.push(guard.as_mut()?);
+            }
+            Some(self.inner.step_batch(&mut handles, actions))
+        });
+        let results = results.ok_or_else(closed_error)?.map_err(to_py_err)?;
         results
             .into_iter()
             .map(|result| match result {
@@ -329,6 +347,10 @@ fn step_tuple(py: Python<'_>, reply: StepReply) -> PyResult<Bound<'_, PyTuple>> 
 /// An env on a server.
 #[pyclass(module = "highway_arena._core")]
 struct Env {
+    /// As the server described the env at creation (read without the lock).
+    specs: EnvSpecs,
+    /// `None` once closed. Locked only with the GIL released: a thread waiting for the
+    /// lock never holds the GIL, and the thread holding it never waits for the GIL.
     inner: Mutex<Option<BlockingEnv>>,
 }
 
@@ -338,9 +360,7 @@ impl Env {
         py: Python<'_>,
         f: impl FnOnce(&mut BlockingEnv) -> Result<T, ClientError> + Send,
     ) -> PyResult<T> {
-        let mut guard = lock(&self.inner);
-        let env = guard.as_mut().ok_or_else(closed_error)?;
-        py.detach(|| f(env)).map_err(to_py_err)
+        py.detach(|| lock(&self.inner).as_mut().map(f)).ok_or_else(closed_error)?.map_err(to_py_err)
     }
 }
 
@@ -348,9 +368,7 @@ impl Env {
 impl Env {
     /// possible_agents, spaces (as dicts), dt, max_cycles, render_fps.
     fn specs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let guard = lock(&self.inner);
-        let env = guard.as_ref().ok_or_else(closed_error)?;
-        let specs = env.specs();
+        let specs = &self.specs;
         let dict = PyDict::new(py);
         dict.set_item("possible_agents", specs.possible_agents.clone())?;
         dict.set_item(
@@ -420,16 +438,20 @@ impl Env {
 
     /// Closes the env on the server. Idempotent.
     fn close(&self, py: Python<'_>) -> PyResult<()> {
-        let taken = lock(&self.inner).take();
-        if let Some(mut env) = taken {
-            py.detach(move || env.close()).map_err(to_py_err)?;
-        }
-        Ok(())
+        py.detach(|| match lock(&self.inner).take() {
+            Some(mut env) => env.close(),
+            None => Ok(()),
+        })
+        .map_err(to_py_err)
     }
 }
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // The connection defaults, defined once in arena-protocol; the Python package reads them.
+    m.add("DEFAULT_CONNECT", DEFAULT_ENDPOINT)?;
+    m.add("DEFAULT_PREFIX", DEFAULT_PREFIX)?;
+    m.add("DEFAULT_TIMEOUT", DEFAULT_TIMEOUT)?;
     m.add_class::<Client>()?;
     m.add_class::<Env>()?;
     m.add("ArenaError", m.py().get_type::<ArenaError>())?;

@@ -5,19 +5,22 @@
 //! each normalised to [-1, 1] as highway-env's ContinuousAction is (learners do best on
 //! a symmetric unit box): 1 is the acceleration bound and one lane width to the left.
 
-use arena_protocol::{Action, ActionType, DType, ErrorCode, Space};
+use arena_protocol::{
+    Action, ActionType, DType, ErrorCode, META_FASTER, META_IDLE, META_LANE_LEFT, META_LANE_RIGHT, META_SLOWER, Space,
+};
 
-use crate::road::LaneId;
-use crate::world::{AgentCommand, Driver, VehicleId, World};
+use arena_sim::dynamics::Command;
+use arena_sim::road::LaneChange;
+use arena_sim::road::{LaneId, Road};
+use arena_sim::world::{AgentCommand, VehicleId, World};
 
 /// The target speeds `faster` and `slower` step through (m/s): highway-env's
 /// `MDPVehicle.DEFAULT_TARGET_SPEEDS`.
 pub const TARGET_SPEEDS: [f64; 3] = [20.0, 25.0, 30.0];
 
-const LANE_LEFT: u32 = 0;
-const LANE_RIGHT: u32 = 2;
-const FASTER: u32 = 3;
-const SLOWER: u32 = 4;
+/// The acceleration (m/s^2) a continuous action of 1 asks for: highway-env's
+/// ContinuousAction range, [-6, 6] m/s^2 (its ACCELERATION_RANGE).
+pub const CONTINUOUS_ACCEL_SCALE: f64 = 6.0;
 
 /// The action space of an agent driving with `kind`.
 pub fn space(kind: ActionType) -> Space {
@@ -42,12 +45,17 @@ pub fn check(action: &Action, kind: ActionType) -> Result<(), (ErrorCode, String
 }
 
 /// Which meta actions make a difference now: [left, idle, right, faster, slower].
-pub fn meta_mask(world: &World, id: VehicleId) -> [bool; 5] {
-    let vehicle = world.vehicle(id);
-    let lane = vehicle.target_lane.0 as i64;
-    let open = |lane: i64| world.road.has_lane(lane) && world.road.lane_end(LaneId(lane as u32)) > vehicle.state.s;
-    let speed = speed_index(vehicle.target_speed);
-    [open(lane - 1), true, open(lane + 1), speed + 1 < TARGET_SPEEDS.len(), speed > 0]
+pub fn meta_mask(road: &Road, target_lane: LaneId, target_speed: f64, s: f64) -> [bool; 5] {
+    let lane = i64::from(target_lane.0);
+    let open = |lane: i64| road.has_lane(lane) && road.lane_end(LaneId(lane as u32)) > s;
+    let speed = speed_index(target_speed);
+    let mut mask = [false; 5];
+    mask[META_LANE_LEFT as usize] = open(lane - 1);
+    mask[META_IDLE as usize] = true;
+    mask[META_LANE_RIGHT as usize] = open(lane + 1);
+    mask[META_FASTER as usize] = speed + 1 < TARGET_SPEEDS.len();
+    mask[META_SLOWER as usize] = speed > 0;
+    mask
 }
 
 fn speed_index(target: f64) -> usize {
@@ -57,13 +65,13 @@ fn speed_index(target: f64) -> usize {
 }
 
 /// The meta action closest to an acceleration and a lane change (sigma -1 = left).
-pub fn meta_equivalent(accel: f64, sigma: i8) -> u32 {
-    match sigma {
-        -1 => LANE_LEFT,
-        1 => LANE_RIGHT,
-        _ if accel > 0.5 => FASTER,
-        _ if accel < -0.5 => SLOWER,
-        _ => 1,
+pub fn meta_equivalent(accel: f64, change: LaneChange) -> u32 {
+    match change {
+        LaneChange::Left => META_LANE_LEFT,
+        LaneChange::Right => META_LANE_RIGHT,
+        LaneChange::Keep if accel > 0.5 => META_FASTER,
+        LaneChange::Keep if accel < -0.5 => META_SLOWER,
+        LaneChange::Keep => META_IDLE,
     }
 }
 
@@ -71,34 +79,33 @@ pub fn meta_equivalent(accel: f64, sigma: i8) -> u32 {
 pub fn apply(world: &mut World, id: VehicleId, action: Option<&Action>, kind: ActionType) {
     match (kind, action) {
         (ActionType::Meta, action) => {
-            world.vehicle_mut(id).driver = Driver::Agent(AgentCommand::Track);
+            world.command_agent(id, AgentCommand::Track);
             let Some(&Action::Meta(choice)) = action else { return };
-            let mask = meta_mask(world, id);
+            let vehicle = world.vehicle(id);
+            let mask = meta_mask(world.road(), vehicle.target_lane, vehicle.target_speed, vehicle.state.s);
             if !mask[choice as usize] {
                 return;
             }
-            let vehicle = world.vehicle(id);
             let (lane, speed) = (vehicle.target_lane.0, speed_index(vehicle.target_speed));
             match choice {
-                LANE_LEFT => world.change_lane(id, LaneId(lane - 1)),
-                LANE_RIGHT => world.change_lane(id, LaneId(lane + 1)),
-                FASTER => world.vehicle_mut(id).target_speed = TARGET_SPEEDS[speed + 1],
-                SLOWER => world.vehicle_mut(id).target_speed = TARGET_SPEEDS[speed - 1],
+                META_LANE_LEFT => world.change_lane(id, LaneId(lane - 1)),
+                META_LANE_RIGHT => world.change_lane(id, LaneId(lane + 1)),
+                META_FASTER => world.set_target_speed(id, TARGET_SPEEDS[speed + 1]),
+                META_SLOWER => world.set_target_speed(id, TARGET_SPEEDS[speed - 1]),
                 _ => {}
             }
         }
         (ActionType::Continuous, action) => {
             let lane = world.current_lane(id);
-            let centre = world.road.lane_center(lane);
+            let centre = world.road().lane_center(lane);
             let [accel, offset] = match action {
                 Some(&Action::Continuous(values)) => values.map(f64::from),
                 _ => [0.0, 0.0],
             };
-            let accel = accel * world.idm.accel_limit;
-            let command = crate::dynamics::Command { accel, preview: centre + offset * world.road.lane_width() };
-            let vehicle = world.vehicle_mut(id);
-            vehicle.target_lane = lane;
-            vehicle.driver = Driver::Agent(AgentCommand::Direct(command));
+            let command =
+                Command { accel: accel * CONTINUOUS_ACCEL_SCALE, preview: centre + offset * world.road().lane_width() };
+            world.set_target_lane(id, lane);
+            world.command_agent(id, AgentCommand::Direct(command));
         }
     }
 }

@@ -18,8 +18,9 @@ use arena_protocol::{
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::scenario::{ActionKind, DriverSpec, Scenario};
-use crate::world::{Status, VehicleId, World};
+use arena_sim::av::{Game, expert_decision};
+use arena_sim::scenario::{ActionKind, DriverSpec, Scenario};
+use arena_sim::world::{Status, VehicleId, World};
 
 pub use observation::{KINEMATICS_FEATURES, KINEMATICS_VEHICLES};
 pub use reward::COLLISION_PENALTY;
@@ -61,7 +62,7 @@ pub struct Env {
     observation: ObservationKind,
     max_cycles: u32,
     render_size: (u32, u32),
-    expert: Option<crate::av::Game>,
+    expert: Option<Game>,
     seeds: ChaCha8Rng,
     world: Option<World>,
     agents: Vec<AgentSlot>,
@@ -91,7 +92,8 @@ impl Env {
             .agents()
             .map(|spec| AgentSlot {
                 name: spec.name.clone(),
-                vehicle: VehicleId(scenario.vehicles.iter().position(|v| v.name == spec.name).unwrap_or(0) as u32),
+                // Found in the world at each reset (`Scenario::build` orders vehicles by name).
+                vehicle: VehicleId(0),
                 action: options.action_type.unwrap_or(match spec.driver {
                     DriverSpec::Agent(ActionKind::Continuous) => ActionType::Continuous,
                     _ => ActionType::Meta,
@@ -105,8 +107,8 @@ impl Env {
             max_cycles,
             render_size,
             expert: options.expert.map(|game| match game {
-                ExpertGame::Nash => crate::av::Game::Nash,
-                ExpertGame::Stackelberg => crate::av::Game::Stackelberg,
+                ExpertGame::Nash => Game::Nash,
+                ExpertGame::Stackelberg => Game::Stackelberg,
             }),
             seeds: ChaCha8Rng::seed_from_u64(entropy),
             world: None,
@@ -150,18 +152,19 @@ impl Env {
         if let Some(seed) = seed {
             self.seeds = ChaCha8Rng::seed_from_u64(seed);
         }
-        let world = self.scenario.build(self.seeds.next_u64());
+        let mut world = self.scenario.build(self.seeds.next_u64());
         self.cycles = 0;
         for agent in &mut self.agents {
             agent.live = true;
+            agent.vehicle = world.find(&agent.name).unwrap_or(agent.vehicle);
         }
         let outcome = self
             .agents
             .iter()
             .map(|agent| {
-                let observation = observation::observe(self.observation, &world, agent.vehicle, agent.action);
+                let observation = observation::observe(self.observation, world.scene(), agent.vehicle, agent.action);
                 let mut info = reward::info(&world, agent.vehicle, None);
-                add_expert(self.expert, &mut info, &world, agent);
+                add_expert(self.expert, &mut info, &mut world, agent);
                 (agent.name.clone(), observation, info)
             })
             .collect();
@@ -222,7 +225,7 @@ impl Env {
             }
             results.push(AgentStep {
                 agent: agent.name.clone(),
-                observation: observation::observe(self.observation, world, agent.vehicle, agent.action),
+                observation: observation::observe(self.observation, world.scene(), agent.vehicle, agent.action),
                 reward,
                 terminated,
                 truncated: truncated && !terminated,
@@ -263,19 +266,21 @@ impl Env {
 /// the agent's own action space (for meta agents: a lane change when the game
 /// changes lanes, else faster/slower/idle by the sign of its acceleration beyond
 /// ±0.5 m/s^2), and the game's raw `expert_accel` and `expert_sigma`.
-fn add_expert(expert: Option<crate::av::Game>, info: &mut Info, world: &World, agent: &AgentSlot) {
+fn add_expert(expert: Option<Game>, info: &mut Info, world: &mut World, agent: &AgentSlot) {
     let Some(game) = expert else { return };
-    let decision = crate::av::expert_decision(world, agent.vehicle, game);
+    let params = world.av_params(agent.vehicle);
+    let decision = expert_decision(world.scene(), agent.vehicle, game, &params);
+    let sigma = decision.lane_change.sigma();
     let action = match agent.action {
-        ActionType::Meta => InfoValue::I64(i64::from(action::meta_equivalent(decision.accel, decision.sigma))),
+        ActionType::Meta => InfoValue::I64(i64::from(action::meta_equivalent(decision.accel, decision.lane_change))),
         ActionType::Continuous => {
-            let accel = (decision.accel / world.idm.accel_limit).clamp(-1.0, 1.0);
-            InfoValue::F64s(vec![accel, -f64::from(decision.sigma)])
+            let accel = (decision.accel / action::CONTINUOUS_ACCEL_SCALE).clamp(-1.0, 1.0);
+            InfoValue::F64s(vec![accel, -f64::from(sigma)])
         }
     };
     info.values.push(("expert_action".to_string(), action));
     info.values.push(("expert_accel".to_string(), InfoValue::F64(decision.accel)));
-    info.values.push(("expert_sigma".to_string(), InfoValue::I64(i64::from(decision.sigma))));
+    info.values.push(("expert_sigma".to_string(), InfoValue::I64(i64::from(sigma))));
 }
 
 #[cfg(test)]

@@ -10,8 +10,11 @@
 use arena_protocol::{ActionType, DType, Observation, ObservationKind, Space, Tensor, TensorData};
 
 use super::action::meta_mask;
-use crate::scenario::Scenario;
-use crate::world::{VehicleId, World};
+use arena_sim::dynamics::VehicleState;
+use arena_sim::road::Road;
+use arena_sim::scenario::Scenario;
+use arena_sim::scene::{Scene, VehicleId};
+use arena_sim::world::World;
 
 /// Rows of the kinematics matrix: the agent and its nearest neighbours.
 pub const KINEMATICS_VEHICLES: usize = 5;
@@ -52,55 +55,54 @@ fn vehicle_count(scenario: &Scenario) -> usize {
     scenario.vehicles.len() + scenario.traffic.as_ref().map_or(0, |t| t.count as usize)
 }
 
-fn features(world: &World, id: VehicleId, origin: Option<VehicleId>) -> [f32; KINEMATICS_FEATURES] {
-    let vehicle = world.vehicle(id);
-    let state = &vehicle.state;
+/// One row: `state`'s features, relative to `origin` (the observing agent) if given.
+fn features(road: &Road, state: &VehicleState, origin: Option<&VehicleState>) -> [f32; KINEMATICS_FEATURES] {
     let (sin, cos) = state.heading.sin_cos();
     let (v_s, v_d) = (state.vx * cos - state.vy * sin, state.vx * sin + state.vy * cos);
-    let width = world.road.lane_width() * world.road.lane_count() as f64;
-    let (mut s, mut d, mut vs, mut vd) =
-        (state.s / world.road.length(), state.d / width, v_s / MAX_SPEED, v_d / MAX_SPEED);
-    if let Some(origin) = origin.filter(|&o| o != id) {
-        let o = &world.vehicle(origin).state;
+    let width = road.lane_width() * road.lane_count() as f64;
+    let (mut s, mut d, mut vs, mut vd) = (state.s / road.length(), state.d / width, v_s / MAX_SPEED, v_d / MAX_SPEED);
+    if let Some(o) = origin {
         let (osin, ocos) = o.heading.sin_cos();
         s = (state.s - o.s) / SIGHT;
         d = (state.d - o.d) / width;
         vs = (v_s - (o.vx * ocos - o.vy * osin)) / MAX_SPEED;
         vd = (v_d - (o.vx * osin + o.vy * ocos)) / MAX_SPEED;
-    } else if origin.is_some() {
-        s = 0.0;
     }
     [1.0, s, d, vs, vd, cos, sin].map(|x| x.clamp(-1.0, 1.0) as f32)
 }
 
-/// The kinematics matrix of agent `id`, flattened row by row.
-pub fn kinematics(world: &World, id: VehicleId) -> Tensor {
-    let me = world.vehicle(id).state.s;
-    let mut near: Vec<(f64, u32)> = world
-        .vehicles
-        .iter()
-        .enumerate()
-        .filter(|&(i, v)| i as u32 != id.0 && v.on_road() && (v.state.s - me).abs() <= SIGHT)
-        .map(|(i, v)| ((v.state.s - me).abs(), i as u32))
+/// The agent's own row (absolute, with s = 0), then the nearest cars on the road within
+/// sight, by distance along the road (ties by id), found through the scene's index.
+pub fn kinematics(scene: &Scene, id: VehicleId) -> Tensor {
+    let me = scene.car(id);
+    let mut near: Vec<(f64, VehicleId)> = scene
+        .around(me.state.s, SIGHT)
+        .filter(|car| car.id != id)
+        .map(|car| ((car.state.s - me.state.s).abs(), car.id))
         .collect();
     near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let mut data = Vec::with_capacity(KINEMATICS_VEHICLES * KINEMATICS_FEATURES);
-    data.extend(features(world, id, Some(id)));
+    let mut own = features(&scene.road, &me.state, None);
+    own[1] = 0.0;
+    data.extend(own);
     for &(_, other) in near.iter().take(KINEMATICS_VEHICLES - 1) {
-        data.extend(features(world, VehicleId(other), Some(id)));
+        data.extend(features(&scene.road, &scene.car(other).state, Some(&me.state)));
     }
     data.resize(KINEMATICS_VEHICLES * KINEMATICS_FEATURES, 0.0);
     Tensor { shape: vec![(KINEMATICS_VEHICLES * KINEMATICS_FEATURES) as u32], data: TensorData::F32(data) }
 }
 
-/// What agent `id` observes.
-pub fn observe(kind: ObservationKind, world: &World, id: VehicleId, action: ActionType) -> Observation {
-    let matrix = kinematics(world, id);
+/// What agent `id` observes; `scene` must be the world as it is now (`World::scene`).
+pub fn observe(kind: ObservationKind, scene: &Scene, id: VehicleId, action: ActionType) -> Observation {
+    let matrix = kinematics(scene, id);
     match kind {
         ObservationKind::Kinematics => Observation::Tensor(matrix),
         ObservationKind::KinematicsWithMask => {
             let mask = match action {
-                ActionType::Meta => meta_mask(world, id).map(i8::from).to_vec(),
+                ActionType::Meta => {
+                    let car = scene.car(id);
+                    meta_mask(&scene.road, car.target_lane, car.target_speed, car.state.s).map(i8::from).to_vec()
+                }
                 ActionType::Continuous => vec![1; 5],
             };
             let mask = Tensor { shape: vec![5], data: TensorData::I8(mask) };
@@ -109,13 +111,12 @@ pub fn observe(kind: ObservationKind, world: &World, id: VehicleId, action: Acti
     }
 }
 
-/// Every vehicle's absolute features, rows in vehicle order; vehicles gone are zeros.
 pub fn state(world: &World, scenario: &Scenario) -> Observation {
     let rows = vehicle_count(scenario);
     let mut data = Vec::with_capacity(rows * KINEMATICS_FEATURES);
-    for (i, vehicle) in world.vehicles.iter().enumerate().take(rows) {
+    for vehicle in world.vehicles().iter().take(rows) {
         if vehicle.on_road() {
-            data.extend(features(world, VehicleId(i as u32), None));
+            data.extend(features(world.road(), &vehicle.state, None));
         } else {
             data.extend([0.0; KINEMATICS_FEATURES]);
         }

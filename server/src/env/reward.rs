@@ -5,8 +5,8 @@
 
 use arena_protocol::{Info, InfoValue};
 
-use crate::av::{CostComponents, stage_cost};
-use crate::world::{Status, VehicleId, World};
+use arena_sim::av::{CostComponents, stage_cost};
+use arena_sim::world::{Status, VehicleId, World};
 
 /// Subtracted from the reward on the step an agent crashes. Chosen here to exceed what
 /// J reaches in ordinary driving, so that no cost saved is worth a collision.
@@ -24,8 +24,8 @@ pub struct StepCost {
 /// Advances the world by `step_dt` and returns each vehicle's mean cost over it,
 /// sampled once per control period.
 pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<StepCost> {
-    let per_control = world.params.substeps_per_control();
-    let ticks = (step_dt / world.params.physics_dt).round() as u64;
+    let per_control = world.params().substeps_per_control();
+    let ticks = (step_dt / world.params().physics_dt).round() as u64;
     let mut sums = vec![StepCost::default(); vehicles.len()];
     let mut samples = 0u32;
     for tick in 0..ticks {
@@ -34,7 +34,8 @@ pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<S
             samples += 1;
             for (sum, &id) in sums.iter_mut().zip(vehicles) {
                 if world.vehicle(id).status == Status::Driving {
-                    let cost = stage_cost(world, id);
+                    let params = world.av_params(id);
+                    let cost = stage_cost(world.scene(), id, &params);
                     sum.components.safety += cost.safety;
                     sum.components.comfort += cost.comfort;
                     sum.components.efficiency += cost.efficiency;
@@ -61,7 +62,7 @@ pub fn info(world: &World, id: VehicleId, cost: Option<&StepCost>) -> Info {
     let vehicle = world.vehicle(id);
     let mut values = vec![
         ("speed".to_string(), InfoValue::F64(vehicle.state.vx)),
-        ("lane".to_string(), InfoValue::I64(world.road.nearest_lane(vehicle.state.d).0 as i64)),
+        ("lane".to_string(), InfoValue::I64(world.road().nearest_lane(vehicle.state.d).0 as i64)),
         ("s".to_string(), InfoValue::F64(vehicle.state.s)),
         ("crashed".to_string(), InfoValue::Bool(vehicle.status == Status::Crashed)),
         ("off_road".to_string(), InfoValue::Bool(vehicle.status == Status::OffRoad)),

@@ -1,6 +1,6 @@
 use super::*;
-use crate::scenario::builtin;
 use arena_protocol::InfoValue;
+use arena_sim::scenario::builtin;
 
 fn env(name: &str, options: CreateOptions) -> Env {
     Env::new(builtin(name).unwrap().unwrap(), &options, 1).unwrap()
@@ -171,7 +171,7 @@ fn expert_infos_say_what_the_built_in_av_would_do() {
                 Some(InfoValue::F64(a)) => a,
                 other => panic!("{other:?}"),
             },
-            sigma as i8,
+            arena_sim::road::LaneChange::from_sigma(sigma as i8),
         ));
         assert_eq!(action, expected);
     }

@@ -14,7 +14,7 @@ use arena_protocol::{
 };
 
 use crate::env::Env;
-use crate::scenario::{BUILTIN, Scenario};
+use arena_sim::scenario::{BUILTIN, Scenario};
 
 /// How much a server takes on.
 #[derive(Debug, Clone, Copy, PartialEq)]

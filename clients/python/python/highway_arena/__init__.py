@@ -20,6 +20,7 @@ from ._errors import (
     ArenaTimeoutError,
     EnvClosedError,
     InvalidActionError,
+    InvalidEndpointError,
     ScenarioError,
     ServerNotFoundError,
 )
@@ -35,6 +36,7 @@ __all__ = [
     "EnvClosedError",
     "GymEnv",
     "InvalidActionError",
+    "InvalidEndpointError",
     "LocalServer",
     "ParallelEnv",
     "ScenarioError",
@@ -51,7 +53,9 @@ __all__ = [
 
 for _scenario in ("merge", "overtake", "highway"):
     # gymnasium.make("highway_arena/merge-v0", connect=...) builds a GymEnv.
-    gymnasium.register(f"highway_arena/{_scenario}-v0", entry_point="highway_arena.single:GymEnv", kwargs={"scenario": _scenario})
+    gymnasium.register(
+        f"highway_arena/{_scenario}-v0", entry_point="highway_arena.single:GymEnv", kwargs={"scenario": _scenario}
+    )
 
 
 def parallel_env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwargs) -> ParallelEnv:
@@ -60,8 +64,15 @@ def parallel_env(scenario="merge", connect=None, render_mode=None, max_cycles=No
 
 
 def env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwargs):
-    """The AEC version of ``parallel_env`` (PettingZoo's own ``parallel_to_aec``)."""
-    return parallel_to_aec(parallel_env(scenario, connect, render_mode, max_cycles, **kwargs))
+    """The AEC version of ``parallel_env`` (PettingZoo's own ``parallel_to_aec``). Its
+    ``dt`` is the simulated seconds of one cycle (every live agent acting once)."""
+    parallel = parallel_env(scenario, connect, render_mode, max_cycles, **kwargs)
+    aec = parallel_to_aec(parallel)
+    # PettingZoo's wrappers forward unknown attributes inward only as far as the
+    # parallel_to_aec wrapper; give it the timing the parallel env exposes.
+    aec.env.dt = parallel.dt
+    aec.env.max_cycles = parallel.max_cycles
+    return aec
 
 
 def gym_env(scenario="highway", agent=None, connect=None, render_mode=None, **kwargs) -> GymEnv:

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from ._errors import InvalidActionError
+
 
 def space(spec: dict) -> spaces.Space:
     kind = spec["type"]
@@ -36,11 +38,32 @@ def observation(value):
 
 
 def action(value, action_space: spaces.Space, agent: str):
-    """An int for Discrete, two floats for Box; numpy scalars and arrays accepted."""
+    """An int for Discrete (a Python int, a numpy integer, or an integer array of one
+    element), floats for Box (any sequence or array of the space's size)."""
     if isinstance(action_space, spaces.Discrete):
-        array = np.asarray(value)
-        if array.shape != () or not np.issubdtype(array.dtype, np.integer):
-            raise ValueError(f"agent {agent!r}: expected an int for {action_space}, got {value!r}")
-        return int(array)
-    array = np.asarray(value, dtype=np.float32).reshape(-1)
-    return [float(x) for x in array]
+        if type(value) is int:
+            index = value
+        else:
+            array = np.asarray(value)
+            if array.size != 1 or not np.issubdtype(array.dtype, np.integer):
+                raise InvalidActionError(
+                    "InvalidAction", f"agent {agent!r}: expected an int for {action_space}, got {value!r}"
+                )
+            index = int(array.reshape(()))
+        first = int(action_space.start)
+        if not first <= index < first + int(action_space.n):
+            last = first + int(action_space.n) - 1
+            raise InvalidActionError(
+                "InvalidAction", f"agent {agent!r}: action {index} is outside {action_space}: use {first}..{last}"
+            )
+        return index
+    try:
+        array = np.asarray(value, dtype=np.float32)
+    except (TypeError, ValueError):
+        array = None
+    if array is None or array.size != int(np.prod(action_space.shape)):
+        raise InvalidActionError(
+            "InvalidAction",
+            f"agent {agent!r}: expected {int(np.prod(action_space.shape))} floats for {action_space}, got {value!r}",
+        )
+    return array.reshape(-1).tolist()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import re
 
 from . import _core
 
@@ -29,6 +30,10 @@ class InvalidActionError(ArenaError, ValueError):
     that is not live."""
 
 
+class InvalidEndpointError(ArenaError, ValueError):
+    """``connect`` is not a Zenoh endpoint this client can use (write tcp/HOST:PORT)."""
+
+
 class ScenarioError(ArenaError, ValueError):
     """A scenario the server does not have, or one that does not validate."""
 
@@ -38,8 +43,8 @@ class EnvClosedError(ArenaError):
 
 
 _BY_CODE = {
+    "InvalidEndpoint": InvalidEndpointError,
     "NoServer": ServerNotFoundError,
-    "Zenoh": ServerNotFoundError,
     "Timeout": ArenaTimeoutError,
     "InvalidAction": InvalidActionError,
     "WrongActionType": InvalidActionError,
@@ -53,13 +58,31 @@ _BY_CODE = {
 
 _HINTS = {
     "AgentNotLive": " (only agents in env.agents may act; reset when env.agents is empty)",
-    "NotReset": " (call reset() before step(), state() or render())",
+    "InvalidAction": " (actions must lie in env.action_space(agent))",
+    "UnknownScenario": " (or pass scenario_text= with a scenario file's TOML)",
+    "TooManyEnvs": " (close envs you no longer use, or start arena-server with a larger --max-envs)",
 }
+
+# Zenoh's messages end with where in its sources they were raised: noise to a user.
+_SOURCE_LOCATION = re.compile(r" at /\S+?\.rs:\d+\.?")
+
+
+def clean(message: str) -> str:
+    """A Zenoh error message without source locations."""
+    return _SOURCE_LOCATION.sub("", message)
 
 
 def translate(error: _core.ArenaError) -> ArenaError:
     code, message = error.args
-    return _BY_CODE.get(code, ArenaError)(code, message + _HINTS.get(code, ""))
+    if code == "Zenoh" and message.endswith("error reply: Timeout"):
+        # Zenoh's own query timeout, reported as an error reply: the server is there
+        # (its queryable is routed) but did not answer in time.
+        return ArenaTimeoutError(
+            "Timeout",
+            "no reply from the arena-server within the timeout: is it still running (not stopped or "
+            "overloaded) and reachable? Pass a larger timeout= if its steps are slow",
+        )
+    return _BY_CODE.get(code, ArenaError)(code, clean(message) + _HINTS.get(code, ""))
 
 
 def translated(function):

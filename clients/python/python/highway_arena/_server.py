@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import os
 import pathlib
@@ -52,27 +53,44 @@ def _free_port() -> int:
 @contextlib.contextmanager
 def launch_server(binary=None, listen=None, args=(), timeout=30.0):
     """Starts an arena-server listening on ``listen`` (default: a free 127.0.0.1 port),
-    yields a ``LocalServer`` once it serves, and stops it (SIGTERM) on exit."""
+    yields a ``LocalServer`` once it serves, and stops it (SIGTERM) on exit. ``args``
+    are more command-line flags (``["--scenarios", "my/scenarios"]``)."""
     endpoint = listen or f"tcp/127.0.0.1:{_free_port()}"
-    command = [find_server_binary(binary), "--listen", endpoint, *args]
+    command = [find_server_binary(binary), "--listen", endpoint, *map(str, args)]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     lines: queue.Queue = queue.Queue()
+    # The server's stderr, read all the time (a full pipe would block the server); its
+    # last lines explain a server that exits.
+    errors: collections.deque = collections.deque(maxlen=50)
 
-    def pump():
+    def pump_stdout():
         for line in process.stdout:
             lines.put(line)
         lines.put(None)
 
-    threading.Thread(target=pump, daemon=True).start()
+    def pump_stderr():
+        for line in process.stderr:
+            if line.strip():
+                errors.append(line.rstrip())
+
+    readers = [threading.Thread(target=pump, daemon=True) for pump in (pump_stdout, pump_stderr)]
+    for reader in readers:
+        reader.start()
     try:
         while True:
             try:
                 line = lines.get(timeout=timeout)
             except queue.Empty:
-                raise TimeoutError(f"arena-server did not start serving within {timeout} s: {' '.join(command)}") from None
+                raise TimeoutError(
+                    f"arena-server did not start serving within {timeout} s: {' '.join(command)}"
+                ) from None
             if line is None:
-                error = process.stderr.read() if process.stderr else ""
-                raise RuntimeError(f"arena-server exited before serving ({' '.join(command)}): {error.strip()}")
+                process.wait()
+                readers[1].join(timeout=5)
+                raise RuntimeError(
+                    f"arena-server exited (status {process.returncode}) before serving ({' '.join(command)}): "
+                    + " / ".join(errors)
+                )
             if "serving on" in line:
                 break
         yield LocalServer(endpoint=endpoint, process=process)
@@ -84,6 +102,8 @@ def launch_server(binary=None, listen=None, args=(), timeout=30.0):
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
+        for reader in readers:
+            reader.join(timeout=5)
         for stream in (process.stdout, process.stderr):
             if stream:
                 stream.close()

@@ -4,16 +4,16 @@
 from __future__ import annotations
 
 from . import _convert
-from ._errors import translate, translated
+from ._errors import InvalidActionError, translate, translated
 from . import _core
-from .parallel import Connection
+from .parallel import DEFAULT_PREFIX, DEFAULT_TIMEOUT, Connection
 
 
 class BatchEnv:
     """``num_envs`` copies of a scenario; env ``i`` is seeded ``seed + i`` and re-seeded
     from its own stream when its episode ends."""
 
-    def __init__(self, scenario="highway", num_envs=8, connect=None, prefix="arena", timeout=30.0, **options):
+    def __init__(self, scenario="highway", num_envs=8, connect=None, prefix=DEFAULT_PREFIX, timeout=DEFAULT_TIMEOUT, **options):
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
         self._connection = Connection(connect, prefix, timeout)
@@ -42,10 +42,14 @@ class BatchEnv:
         """``actions``: one dict per env. Returns one (observations, rewards,
         terminations, truncations, infos) per env; an env whose agents all finished is
         reset, and its tuple's observations are the new episode's first."""
-        wire = [
-            {agent: _convert.action(a, self.action_spaces[agent], agent) for agent, a in per_env.items()}
-            for per_env in actions
-        ]
+        wire = []
+        for per_env in actions:
+            for agent in per_env:
+                if agent not in self.action_spaces:
+                    raise InvalidActionError(
+                        "UnknownAgent", f"no agent named {agent!r}; the agents are {self.possible_agents}"
+                    )
+            wire.append({agent: _convert.action(a, self.action_spaces[agent], agent) for agent, a in per_env.items()})
         results = self._connection.client.step_batch(self._envs, wire)
         out = []
         for env, result in zip(self._envs, results):
@@ -54,9 +58,8 @@ class BatchEnv:
             observations, rewards, terminations, truncations, infos, agents = result
             if not agents:
                 observations, _ = env.reset(None, None)
-            out.append(
-                ({a: _convert.observation(o) for a, o in observations.items()}, rewards, terminations, truncations, infos)
-            )
+            observations = {a: _convert.observation(o) for a, o in observations.items()}
+            out.append((observations, rewards, terminations, truncations, infos))
         return out
 
     def close(self):

@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import os
+import re
 
 import gymnasium
 import numpy as np
 from pettingzoo import ParallelEnv as _ParallelEnv
 
 from . import _convert, _core
-from ._errors import translated
+from ._errors import InvalidActionError, InvalidEndpointError, ServerNotFoundError, clean, translate, translated
 
-DEFAULT_CONNECT = "tcp/127.0.0.1:7447"
+# Connection defaults are defined once, in the Rust protocol crate.
+DEFAULT_CONNECT = _core.DEFAULT_CONNECT
+DEFAULT_PREFIX = _core.DEFAULT_PREFIX
+DEFAULT_TIMEOUT = _core.DEFAULT_TIMEOUT
 RENDER_MODES = ["human", "rgb_array", "ansi"]
 
 
@@ -20,14 +24,61 @@ def default_connect() -> str:
     return os.environ.get("HIGHWAY_ARENA_CONNECT", DEFAULT_CONNECT)
 
 
-class Connection:
-    """One Zenoh session and the server picked on it."""
+# A Zenoh endpoint: <protocol>/<address>[?<metadata>][#<config>].
+_ENDPOINT = re.compile(r"^[A-Za-z][A-Za-z0-9_+-]*/\S+$")
+# Attempts per request: a request that got no reply is resent (a step keeps its sequence
+# number, so the server never steps twice); the attempts share the caller's timeout.
+_ATTEMPTS = 3
 
-    @translated
-    def __init__(self, connect=None, prefix="arena", timeout=10.0):
-        endpoints = [connect or default_connect()] if isinstance(connect, (str, type(None))) else list(connect)
-        self.client = _core.Client(endpoints, prefix=prefix, timeout=float(timeout))
-        self.server = self.client.pick_server()
+
+def _endpoints(connect) -> list[str]:
+    if connect is None:
+        connect = default_connect()
+    endpoints = [connect] if isinstance(connect, str) else list(connect)
+    if not endpoints:
+        raise InvalidEndpointError("InvalidEndpoint", "connect= names no endpoint; write e.g. tcp/127.0.0.1:7447")
+    for endpoint in endpoints:
+        if not isinstance(endpoint, str) or not _ENDPOINT.match(endpoint):
+            raise InvalidEndpointError(
+                "InvalidEndpoint",
+                f"connect={endpoint!r} is not a Zenoh endpoint; write PROTOCOL/HOST:PORT, "
+                f"e.g. {DEFAULT_CONNECT} (where arena-server listens by default)",
+            )
+    return endpoints
+
+
+class Connection:
+    """One Zenoh session and the server picked on it. ``timeout`` bounds, in seconds,
+    how long any one call waits in all (retries included)."""
+
+    def __init__(self, connect=None, prefix=DEFAULT_PREFIX, timeout=DEFAULT_TIMEOUT):
+        endpoints = _endpoints(connect)
+        timeout = float(timeout)
+        if not timeout > 0 or timeout == float("inf"):
+            raise ValueError(f"timeout must be a positive number of seconds, not {timeout}")
+        where = ", ".join(endpoints)
+        try:
+            self.client = _core.Client(endpoints, prefix=prefix, timeout=timeout / _ATTEMPTS, retries=_ATTEMPTS - 1)
+        except _core.ArenaError as error:
+            code, message = error.args
+            raise InvalidEndpointError(
+                "InvalidEndpoint",
+                f"cannot open a Zenoh session to {where}: {clean(message)}; "
+                f"write the endpoint as PROTOCOL/HOST:PORT, e.g. {DEFAULT_CONNECT}",
+            ) from None
+        try:
+            self.server = self.client.pick_server()
+        except _core.ArenaError as error:
+            self.client.close()
+            code, message = error.args
+            if code != "NoServer":
+                raise translate(error) from None
+            raise ServerNotFoundError(
+                code,
+                f"no arena-server answered at {where} (prefix {prefix!r}): is one running and listening there? "
+                f"Start one with `arena-server --listen {endpoints[0]}` on that machine, pass connect= the "
+                "endpoint yours listens on, or use highway_arena.launch_server() to start a local one",
+            ) from None
 
     @translated
     def create(self, scenario, scenario_text=None, overrides=None, **options):
@@ -45,7 +96,8 @@ class ParallelEnv(_ParallelEnv):
     ``render_mode`` ('rgb_array' or 'ansi'), ``max_cycles``, ``action_type`` ('meta' or
     'continuous'), ``observation`` ('kinematics' or 'kinematics_with_mask'), ``expert``
     ('nash' or 'stackelberg': infos say what the built-in AV would do), ``seed`` (used by
-    the first ``reset()`` that is given none, for reproducible runs), and scenario
+    the first ``reset()`` that is given none, for reproducible runs), ``timeout`` (the
+    seconds any one call may wait for the server, retries included; default 10), and scenario
     overrides as keyword arguments with dots written as double underscores
     (``vehicle__ac__speed=18.0``) or in ``overrides={"vehicle.ac.speed": 18.0}``."""
 
@@ -62,8 +114,8 @@ class ParallelEnv(_ParallelEnv):
         expert=None,
         scenario_text=None,
         overrides=None,
-        prefix="arena",
-        timeout=10.0,
+        prefix=DEFAULT_PREFIX,
+        timeout=DEFAULT_TIMEOUT,
         render_size=None,
         seed=None,
         **dotted,
@@ -128,7 +180,9 @@ class ParallelEnv(_ParallelEnv):
         wire = {}
         for agent, action in actions.items():
             if agent not in self.action_spaces:
-                raise ValueError(f"no agent named {agent!r}; the agents are {self.possible_agents}")
+                raise InvalidActionError(
+                    "UnknownAgent", f"no agent named {agent!r}; the agents are {self.possible_agents}"
+                )
             wire[agent] = _convert.action(action, self.action_spaces[agent], agent)
         observations, rewards, terminations, truncations, infos, agents = self._env.step(wire)
         self.agents = list(agents)

@@ -1,0 +1,226 @@
+//! `arena paper`: runs the paper's Scenario A (merge) and B (overtake) in process for the
+//! three styles and both games (this crate), prints the counterparts of
+//! Tables IV–VII beside the paper's values, draws speed and gap plots (Figs. 8, 9, 12,
+//! 13) and optionally writes every figure as JSON.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use crate::{PaperOptions, PaperScenario, Record, Trace};
+use anyhow::Context;
+use arena_sim::av::Game;
+use arena_sim::dynamics::Style;
+use arena_sim::road::LaneChange;
+use plotters::prelude::*;
+use plotters::style::{FontStyle, register_font};
+
+/// Arguments of `arena paper` (the subcommand's help line is in main.rs: it runs the
+/// world in process, no server needed).
+#[derive(Debug, clap::Args)]
+pub struct PaperArgs {
+    /// Also write every figure of the tables as JSON to this file.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Folder for the PNG plots (created if missing).
+    #[arg(long, default_value = "out/paper")]
+    pub out: PathBuf,
+    /// Relative tolerance on the Stackelberg follower set of eq. (17b); 0 is the paper's.
+    #[arg(long, default_value_t = 0.0)]
+    pub follower_tolerance: f64,
+}
+
+/// One run's results.
+struct Run {
+    scenario: PaperScenario,
+    style: Style,
+    game: Game,
+    record: Record,
+    trace: Trace,
+}
+
+/// Runs `arena paper`.
+pub fn run(args: PaperArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.follower_tolerance.is_finite() && args.follower_tolerance >= 0.0,
+        "--follower-tolerance must be a number >= 0, not {}",
+        args.follower_tolerance
+    );
+    let options = PaperOptions { follower_tolerance: args.follower_tolerance, ..PaperOptions::default() };
+    let mut runs = Vec::new();
+    for scenario in PaperScenario::ALL {
+        for style in Style::ALL {
+            for game in Game::ALL {
+                let (record, trace) = crate::run(scenario, style, game, &options)
+                    .with_context(|| format!("building scenario {}", scenario.name()))?;
+                runs.push(Run { scenario, style, game, record, trace });
+            }
+        }
+    }
+    print!("{}", tables(&runs));
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
+        .map_err(|_| anyhow::anyhow!("the embedded DejaVu Sans font did not load"))?;
+    for run in &runs {
+        let file = args.out.join(format!("{}_{}_{}.png", run.scenario.name(), run.style.name(), run.game.name()));
+        plot(run, &file).with_context(|| format!("drawing {}", file.display()))?;
+    }
+    println!("plots: {}/{{A,B}}_<style>_<game>.png", args.out.display());
+    if let Some(path) = &args.json {
+        let records: Vec<&Record> = runs.iter().map(|r| &r.record).collect();
+        let text = serde_json::to_string_pretty(&records)?;
+        std::fs::write(path, text + "\n").with_context(|| format!("writing {}", path.display()))?;
+        println!("json: {}", path.display());
+    }
+    Ok(())
+}
+
+fn find(runs: &[Run], scenario: PaperScenario, style: Style, game: Game) -> &Run {
+    runs.iter().find(|r| r.scenario == scenario && r.style == style && r.game == game).expect("every run was made")
+}
+
+fn cell(value: Option<f64>) -> String {
+    value.map_or("-".to_string(), |v| format!("{v:.2}"))
+}
+
+/// The counterparts of Tables IV–VII, ours beside the paper's.
+fn tables(runs: &[Run]) -> String {
+    let mut out = String::new();
+    for scenario in PaperScenario::ALL {
+        let (decision, costs, scale) = match scenario {
+            PaperScenario::A => ("IV", "V", "x 10^5"),
+            PaperScenario::B => ("VI", "VII", "x 10^4"),
+        };
+        let _ = writeln!(out, "\nScenario {} ({}): Table {decision}, ours | paper\n", scenario.name(), scenario.file());
+        let _ =
+            writeln!(out, "| style | figure | NE ours | NE paper | SE ours | SE paper |\n|---|---|---|---|---|---|");
+        for style in Style::ALL {
+            let [ne, se] = Game::ALL.map(|game| find(runs, scenario, style, game));
+            let [ne_ref, se_ref] = Game::ALL.map(|game| crate::reference(scenario, style, game));
+            let mut row = |figure: &str, ours: [Option<f64>; 2], theirs: [Option<f64>; 2]| {
+                let _ = writeln!(
+                    out,
+                    "| {} | {figure} | {} | {} | {} | {} |",
+                    style.name(),
+                    cell(ours[0]),
+                    cell(theirs[0]),
+                    cell(ours[1]),
+                    cell(theirs[1])
+                );
+            };
+            row("t_c (s)", [ne.record.t_c, se.record.t_c], [ne_ref.t_c, se_ref.t_c]);
+            for role in &ne.trace.roles[1..] {
+                let ours = [ne, se].map(|r| r.record.gaps_at_t_c.get(role).copied());
+                let theirs = [&ne_ref, &se_ref].map(|r| r.gaps.get(role).copied());
+                row(&format!("gap {role} (m)"), ours, theirs);
+            }
+            for role in &ne.trace.roles {
+                let ours = [ne, se].map(|r| r.record.speeds_at_t_c.get(role).copied());
+                let theirs = [&ne_ref, &se_ref].map(|r| r.speeds.get(role).copied());
+                row(&format!("v {role} (m/s)"), ours, theirs);
+            }
+            let (side, crash) =
+                (|r: &Run| r.record.lane_change.name(), |r: &Run| if r.record.collision { "yes" } else { "no" });
+            let paper_side = match (scenario, style) {
+                (PaperScenario::B, Style::Conservative) => LaneChange::Keep.name(),
+                _ => LaneChange::Left.name(),
+            };
+            let _ = writeln!(
+                out,
+                "| {} | lane change | {} | {paper_side} | {} | {paper_side} |",
+                style.name(),
+                side(ne),
+                side(se)
+            );
+            let _ = writeln!(out, "| {} | collision | {} | no | {} | no |", style.name(), crash(ne), crash(se));
+            let inexact = |r: &Run| r.record.inexact_decisions;
+            let _ =
+                writeln!(out, "| {} | inexact decisions | {} | - | {} | - |", style.name(), inexact(ne), inexact(se));
+        }
+        let _ =
+            writeln!(out, "\nScenario {}: Table {costs}, RMS of EC's costs, ours | paper ({scale})\n", scenario.name());
+        let _ = writeln!(out, "| style | cost | NE ours | NE paper | SE ours | SE paper | SE/NE ours | SE/NE paper |");
+        let _ = writeln!(out, "|---|---|---|---|---|---|---|---|");
+        for style in Style::ALL {
+            let [ne, se] = Game::ALL.map(|game| find(runs, scenario, style, game));
+            let [ne_ref, se_ref] = Game::ALL.map(|game| crate::reference(scenario, style, game));
+            let ours = |r: &Run| [r.record.rms_cost.safety, r.record.rms_cost.comfort, r.record.rms_cost.efficiency];
+            for (k, name) in ["safety", "comfort", "efficiency"].iter().enumerate() {
+                let (a, b) = (ours(ne)[k], ours(se)[k]);
+                let (c, d) = (ne_ref.rms[k], se_ref.rms[k]);
+                let _ = writeln!(
+                    out,
+                    "| {} | {name} | {a:.3} | {c:.0} | {b:.3} | {d:.0} | {:.2} | {:.2} |",
+                    style.name(),
+                    b / a,
+                    d / c
+                );
+            }
+        }
+    }
+    out
+}
+
+const COLOURS: [RGBColor; 4] = [RGBColor(200, 30, 30), RGBColor(30, 80, 200), RGBColor(20, 150, 60), BLACK];
+
+/// Speed (top) and gap (bottom) against time for one run, t_c marked; each car keeps its
+/// colour in both panels.
+fn plot(run: &Run, file: &Path) -> anyhow::Result<()> {
+    let root = BitMapBackend::new(file, (900, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let title = format!("Scenario {} - {} - {}", run.scenario.name(), run.style.name(), run.game.name());
+    let root = root.titled(&title, ("sans-serif", 24))?;
+    let (top, bottom) = root.split_vertically(340);
+    let samples = &run.trace.samples;
+    let t_end = samples.last().map_or(1.0, |s| s.t + 0.1);
+    let t_c = run.record.t_c;
+    let speeds: Vec<Vec<(f64, f64)>> =
+        (0..run.trace.roles.len()).map(|i| samples.iter().map(|s| (s.t, s.speeds[i])).collect()).collect();
+    let gaps: Vec<Vec<(f64, f64)>> =
+        (0..run.trace.roles.len() - 1).map(|i| samples.iter().map(|s| (s.t, s.gaps[i])).collect()).collect();
+    let names: Vec<String> = run.trace.roles.iter().map(|r| format!("v {r}")).collect();
+    panel(&top, "speed (m/s)", t_end, &speeds, &names, 0, t_c)?;
+    let names: Vec<String> = run.trace.roles[1..].iter().map(|r| format!("gap EC-{r}")).collect();
+    panel(&bottom, "gap (m), EC ahead > 0", t_end, &gaps, &names, 1, t_c)?;
+    root.present()?;
+    Ok(())
+}
+
+fn panel(
+    area: &DrawingArea<BitMapBackend, plotters::coord::Shift>,
+    y_label: &str,
+    t_end: f64,
+    series: &[Vec<(f64, f64)>],
+    names: &[String],
+    first_colour: usize,
+    t_c: Option<f64>,
+) -> anyhow::Result<()> {
+    let values = series.iter().flatten().map(|&(_, v)| v);
+    let (low, high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| (l.min(v), h.max(v)));
+    let pad = ((high - low) * 0.1).max(1.0);
+    let mut chart = ChartBuilder::on(area)
+        .margin(12)
+        .x_label_area_size(35)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0.0..t_end, (low - pad)..(high + pad))?;
+    chart.configure_mesh().light_line_style(WHITE).x_desc("t (s)").y_desc(y_label).draw()?;
+    for (k, (points, name)) in series.iter().zip(names).enumerate() {
+        let colour = COLOURS[(k + first_colour) % COLOURS.len()];
+        chart
+            .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))?
+            .label(name.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+    }
+    if let Some(t) = t_c {
+        chart
+            .draw_series(LineSeries::new([(t, low - pad), (t, high + pad)], BLACK.mix(0.5)))?
+            .label(format!("t_c = {t:.1} s"))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
+}

@@ -1,0 +1,392 @@
+//! The `gt` driver: reads a car's situation from the `Scene` (lead cars, adjacent cars,
+//! lane ends, through the scene's neighbour queries), plays the game of its role, plans
+//! Y_p with the MPC, and falls back to a safe command when the MPC fails. It returns a
+//! `GtStep`; the world applies it. Its memory (`GtDriver`) is plain data kept in the
+//! vehicle; the only scratch (the MPC's solver) does not affect results. Also the two
+//! questions the env asks of any vehicle: `stage_cost` and `expert_decision`, each with
+//! that vehicle's own parameters.
+
+use serde::{Deserialize, Serialize};
+
+use super::costs::{self, CostComponents};
+use super::field::{self, Field, FieldParams, Obstacle};
+use super::games::{Adjacent, Decision, DecisionParams, Game, LaneOption, Player, Situation};
+use super::mpc::{self, Mpc, MpcError, MpcParams, MpcProblem, MpcSolution};
+use super::prediction::{self, Kinematics, SpeedBounds};
+use super::styles::CostWeights;
+use crate::dynamics::Command;
+use crate::road::{LaneChange, LaneId};
+use crate::scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
+
+/// How a `gt` vehicle reads the world and what it does when planning fails.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GtParams {
+    /// Cars farther than this along the road (m) are not adjacent cars of a game. 60,
+    /// chosen here: two seconds of closing at 30 m/s.
+    pub interaction_range: f64,
+    /// A neighbouring lane that ends within this many seconds of driving is not a
+    /// lane-change target (s). 8, chosen here: a change takes 4.
+    pub lane_end_time: f64,
+    /// Braking of the fallback command (m/s^2), held within the acceleration bounds. 3,
+    /// chosen here: firm, short of the bound, so a follower is not surprised.
+    pub fallback_brake: f64,
+}
+
+impl Default for GtParams {
+    fn default() -> Self {
+        GtParams { interaction_range: 60.0, lane_end_time: 8.0, fallback_brake: 3.0 }
+    }
+}
+
+/// Every constant of the game-theoretic AV.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct AvParams {
+    /// Costs, prediction, games.
+    pub decision: DecisionParams,
+    /// Eq. (19)–(21).
+    pub field: FieldParams,
+    /// Eq. (22)–(29).
+    pub mpc: MpcParams,
+    /// Reading the world; the fallback.
+    pub gt: GtParams,
+}
+
+/// What the driver reports about its last plan.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Diagnostics {
+    /// Why the last plan fell back to the safe command, if it did.
+    pub fallback: Option<String>,
+    /// Plans that fell back since the start.
+    pub fallbacks: u32,
+    /// Interior-point iterations of the last QP.
+    pub iterations: u32,
+    /// Decisions the Nash search took without a pure equilibrium (it then keeps the
+    /// current lane decision) since the start.
+    pub inexact: u32,
+}
+
+/// A `gt` driver's settings and memory: plain data, part of the world's state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GtDriver {
+    /// Nash or Stackelberg.
+    pub game: Game,
+    /// Leader or follower.
+    pub role: Role,
+    /// Its constants.
+    pub params: AvParams,
+    /// The last decision.
+    pub decision: Decision,
+    /// u(k-1): the preview point of the last plan, once there is one (m).
+    pub preview: Option<f64>,
+    /// The last Delta u plan (the MPC's nominal path next time).
+    pub plan: Vec<f64>,
+    /// What happened in the last plan.
+    pub diagnostics: Diagnostics,
+}
+
+impl GtDriver {
+    /// A fresh driver.
+    pub fn new(game: Game, role: Role, params: AvParams) -> GtDriver {
+        GtDriver {
+            game,
+            role,
+            params,
+            decision: Decision::default(),
+            preview: None,
+            plan: Vec::new(),
+            diagnostics: Diagnostics::default(),
+        }
+    }
+}
+
+/// One control period's output of a `gt` driver, before the world applies it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GtStep {
+    /// a_x and Y_p to apply.
+    pub command: Command,
+    /// A lane change to start (or, on fallback, the current lane to return to).
+    pub change_to: Option<LaneId>,
+    /// The driver's new memory.
+    pub driver: GtDriver,
+}
+
+fn kinematics(car: &Car) -> Kinematics {
+    Kinematics { s: car.state.s, d: car.state.d, speed: car.speed() }
+}
+
+fn lead_kinematics(lead: Lead) -> Kinematics {
+    Kinematics { s: lead.s, d: lead.d, speed: lead.speed }
+}
+
+/// v_max of eq. (14)–(15) for `car` in `lane`: the lane's speed limit, or the speed its
+/// driver aims for if lower.
+fn speed_limit(scene: &Scene, car: &Car, lane: LaneId) -> f64 {
+    scene.road.speed_limit(lane).min(car.target_speed)
+}
+
+fn player(scene: &Scene, car: &Car, lane: LaneId, params: &AvParams) -> Player {
+    Player {
+        now: kinematics(car),
+        weights: CostWeights::for_style(car.style),
+        bounds: SpeedBounds { min: params.decision.game.speed_min, max: speed_limit(scene, car, lane) },
+    }
+}
+
+/// A neighbouring lane EC may change to, with its adjacent car: `None` when the lane
+/// does not exist or ends too soon.
+fn side_option(
+    scene: &Scene,
+    id: VehicleId,
+    side: LaneChange,
+    params: &AvParams,
+) -> Option<(LaneOption, Option<VehicleId>)> {
+    let car = scene.car(id);
+    let ego = kinematics(car);
+    let lane = scene.lane_beside(car.lane, side)?;
+    let ahead = scene.road.lane_end(lane) - ego.s;
+    if scene.road.lane_end(lane) < scene.road.length() && ahead < ego.speed.max(10.0) * params.gt.lane_end_time {
+        return None;
+    }
+    let ac = scene.nearest(lane, ego.s, params.gt.interaction_range, &[id]);
+    let adjacent = ac.map(|ac| {
+        let others = [id, ac.id];
+        let ac_lead = scene.lead_car(lane, ac.state.s, &others).map(lead_kinematics);
+        Adjacent {
+            player: player(scene, ac, lane, params),
+            leader: scene.leader(lane, ac.state.s, &others).map(lead_kinematics),
+            lead: ac_lead,
+        }
+    });
+    let exclude: Vec<VehicleId> = [Some(id), ac.map(|ac| ac.id)].into_iter().flatten().collect();
+    let option = LaneOption {
+        sigma: side.sigma(),
+        centre: scene.road.lane_center(lane),
+        speed_limit: speed_limit(scene, car, lane),
+        leader: None,
+        lead: scene.lead_car(lane, ego.s, &exclude).map(lead_kinematics),
+        adjacent,
+    };
+    Some((option, ac.map(|ac| ac.id)))
+}
+
+/// Car `id`'s situation as the EC of a game, and the adjacent car of each side.
+pub fn situation(scene: &Scene, id: VehicleId, params: &AvParams) -> (Situation, [Option<VehicleId>; 2]) {
+    let car = scene.car(id);
+    let keep = LaneOption {
+        sigma: 0,
+        centre: scene.road.lane_center(car.lane),
+        speed_limit: speed_limit(scene, car, car.lane),
+        leader: scene.leader(car.lane, car.state.s, &[id]).map(lead_kinematics),
+        lead: scene.lead_car(car.lane, car.state.s, &[id]).map(lead_kinematics),
+        adjacent: None,
+    };
+    let left = side_option(scene, id, LaneChange::Left, params);
+    let right = side_option(scene, id, LaneChange::Right, params);
+    let committed = Some(car.lane_change().sigma()).filter(|&c| c != 0);
+    let situation = Situation {
+        ego: player(scene, car, car.lane, params),
+        keep,
+        sides: [left.map(|(o, _)| o), right.map(|(o, _)| o)],
+        committed,
+        lane_width: scene.road.lane_width(),
+        car_length: scene.vehicle.length,
+        period: scene.control_dt,
+    };
+    (situation, [left.and_then(|(_, ac)| ac), right.and_then(|(_, ac)| ac)])
+}
+
+/// Eq. (10)–(14) for car `id` as it is now, with the AV constants `params`: sigma is the
+/// lane change it is making (target lane against current lane), a_x its commanded
+/// acceleration, a_y its measured lateral acceleration less the road's centripetal
+/// part. Lane ends count as stopped lead cars in eq. (11), as in the games.
+pub fn stage_cost(scene: &Scene, id: VehicleId, params: &AvParams) -> CostComponents {
+    let c = &params.decision.costs;
+    let car = scene.car(id);
+    let ego = kinematics(car);
+    let sigma = car.lane_change().sigma();
+    let longitudinal = scene
+        .leader(car.lane, ego.s, &[id])
+        .map_or(0.0, |leader| costs::longitudinal_safety(c, scene.vehicle.length, ego, lead_kinematics(leader)));
+    let lateral = match sigma {
+        0 => 0.0,
+        _ => scene
+            .nearest(car.target_lane, ego.s, params.gt.interaction_range, &[id])
+            .map_or(0.0, |ac| costs::lateral_safety(c, scene.vehicle.length, ego, kinematics(ac))),
+    };
+    let centripetal = car.state.vx * car.state.vx * scene.road.curvature(ego.s);
+    let lateral_accel = car.state.lateral_accel(&scene.vehicle) - centripetal;
+    let lead = scene.lead_car(car.target_lane, ego.s, &[id]).map(lead_kinematics);
+    let v_bar = costs::target_speed(c, ego, speed_limit(scene, car, car.target_lane), lead);
+    CostComponents {
+        safety: costs::safety(sigma, longitudinal, lateral),
+        comfort: costs::comfort(c, sigma, car.accel, lateral_accel),
+        efficiency: costs::efficiency(ego.speed, v_bar),
+    }
+}
+
+/// What the built-in AV with constants `params` would decide in car `id`'s place, as
+/// the EC of `game`: its acceleration and lane choice.
+pub fn expert_decision(scene: &Scene, id: VehicleId, game: Game, params: &AvParams) -> Decision {
+    situation(scene, id, params).0.decide(game, &params.decision)
+}
+
+/// The leader or learner in an adjacent lane a follower answers: the nearest within range.
+fn partner(scene: &Scene, id: VehicleId, params: &AvParams) -> Option<VehicleId> {
+    let me = scene.car(id);
+    let range = params.gt.interaction_range;
+    let plays = |other: &&Car| {
+        other.id != id
+            && other.status == Status::Driving
+            && other.lane.0.abs_diff(me.lane.0) == 1
+            && matches!(other.driver, DriverKind::Gt(Role::Leader) | DriverKind::Agent)
+    };
+    scene
+        .around(me.state.s, range)
+        .filter(plays)
+        .map(|other| (other.id, (other.state.s - me.state.s).abs()))
+        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+        .map(|(other, _)| other)
+}
+
+/// What a leader (or learner) decided this period: its acceleration and the lane change
+/// it is making or has just decided. One that has not announced (it no longer drives)
+/// is read from its last command.
+fn observed(scene: &Scene, id: VehicleId) -> (f64, LaneChange) {
+    let car = scene.car(id);
+    car.decided.unwrap_or((car.accel, car.lane_change()))
+}
+
+/// A follower's acceleration: its part of the side game against its partner (Nash), its
+/// best response to the partner's decision of this period (Stackelberg), or, with no
+/// partner in play, the best for itself alone.
+fn follow(scene: &Scene, id: VehicleId, game: Game, params: &AvParams) -> Decision {
+    let alone = || {
+        let (mut own, _) = situation(scene, id, params);
+        own.sides = [None, None];
+        own.committed = None;
+        own.decide(Game::Nash, &params.decision)
+    };
+    let Some(partner) = partner(scene, id, params) else { return alone() };
+    let (view, adjacent) = situation(scene, partner, params);
+    let side = LaneChange::between(scene.car(partner).lane, scene.car(id).lane);
+    if adjacent[usize::from(side == LaneChange::Right)] != Some(id) {
+        return alone();
+    }
+    let side = side.sigma();
+    let accel = match game {
+        Game::Nash => {
+            let side_game = view.side_game(side, &params.decision);
+            if side_game.ec_actions.is_empty() {
+                return alone();
+            }
+            let profile = side_game.nash(); // eq. (15b) / (16e–f)
+            side_game.ac_actions[profile.col]
+        }
+        Game::Stackelberg => {
+            let (accel, change) = observed(scene, partner);
+            let sigma = if change.sigma() == side { side } else { 0 };
+            let me = player(scene, scene.car(id), scene.car(id).lane, params);
+            let grid = params.decision.game.grid(me.now.speed, me.bounds, scene.control_dt);
+            let side_game = view.side_game_with(side, vec![(accel, sigma)], grid, &params.decision);
+            side_game.ac_actions[side_game.table.best_reply(0)] // eq. (17b)
+        }
+    };
+    Decision { accel, lane_change: LaneChange::Keep, exact: true, ..Decision::default() }
+}
+
+/// The field car `id` plans in: the other cars near it and the road's lines.
+fn field_around(scene: &Scene, id: VehicleId, params: &FieldParams) -> Field {
+    let me = scene.car(id).state.s;
+    let obstacles = scene
+        .around(me, params.range)
+        .filter(|car| car.id != id)
+        .map(|car| Obstacle { s: car.state.s, d: car.state.d, heading: car.state.heading, speed: car.speed() })
+        .collect();
+    Field { params: *params, width: scene.vehicle.width, obstacles, lines: field::road_lines(&scene.road, params) }
+}
+
+/// Plans Y_p toward `target` lane for car `id`, driven by `gt`, at acceleration `accel`
+/// with `mpc`.
+pub fn plan_motion(
+    scene: &Scene,
+    id: VehicleId,
+    gt: &GtDriver,
+    accel: f64,
+    target: LaneId,
+    mpc: Option<&mut Mpc>,
+) -> Result<MpcSolution, MpcError> {
+    let params = &gt.params;
+    let car = scene.car(id);
+    let field = field_around(scene, id, &params.field);
+    let road = &scene.road;
+    let w = road.lane_width();
+    let rightmost = road.lane_center(LaneId(road.lane_count() as u32 - 1));
+    let margin = params.mpc.preview_margin;
+    let problem = MpcProblem {
+        state: car.state,
+        accel,
+        previous_preview: gt.preview.unwrap_or(car.preview),
+        target: road.lane_center(target),
+        curvature: road.curvature(car.state.s),
+        vehicle: &scene.vehicle,
+        driver: &car.driver_params,
+        dt: scene.control_dt,
+        field: &field,
+        nominal: &gt.plan,
+        preview_bounds: (rightmost - margin.min(w), margin.min(w)),
+    };
+    match mpc {
+        Some(mpc) => mpc.solve(&problem, &params.mpc),
+        None => mpc::solve(&problem, &params.mpc),
+    }
+}
+
+/// What car `id`, driven by `gt`, decides this period in its role.
+pub fn decide(scene: &Scene, id: VehicleId, gt: &GtDriver) -> Decision {
+    match gt.role {
+        Role::Leader => expert_decision(scene, id, gt.game, &gt.params),
+        Role::Follower => follow(scene, id, gt.game, &gt.params),
+    }
+}
+
+/// One control period of the `gt` driver of car `id`: decide, plan, or fall back.
+/// Reads the scene only; the world applies the returned step.
+pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) -> GtStep {
+    let car = scene.car(id);
+    let decision = decide(scene, id, gt);
+    let starts = decision.lane_change != LaneChange::Keep && car.target_lane == car.lane && gt.role == Role::Leader;
+    let target = if starts { scene.lane_beside(car.lane, decision.lane_change) } else { None };
+    let target = target.unwrap_or(car.target_lane);
+    let mut driver = GtDriver::clone(gt);
+    driver.decision = decision;
+    driver.diagnostics.inexact += u32::from(!decision.exact);
+    match plan_motion(scene, id, gt, decision.accel, target, mpc) {
+        Ok(solution) => {
+            driver.preview = Some(solution.preview);
+            driver.plan = solution.plan;
+            driver.diagnostics.fallback = None;
+            driver.diagnostics.iterations = solution.iterations;
+            let command = Command { accel: decision.accel, preview: solution.preview };
+            GtStep { command, change_to: (target != car.target_lane).then_some(target), driver }
+        }
+        Err(error) => fallback(scene, id, driver, &error),
+    }
+}
+
+/// The safe command: keep (or return to) the current lane, brake within bounds.
+fn fallback(scene: &Scene, id: VehicleId, mut driver: GtDriver, error: &MpcError) -> GtStep {
+    let car = scene.car(id);
+    let params = &driver.params;
+    let bounds = SpeedBounds { min: params.decision.game.speed_min, max: speed_limit(scene, car, car.lane) };
+    let brake = (-params.gt.fallback_brake).max(params.decision.game.accel_min);
+    let accel = prediction::feasible_accel(brake, car.state.vx, bounds, scene.control_dt);
+    let preview = scene.road.lane_center(car.lane);
+    driver.decision = Decision { accel, lane_change: LaneChange::Keep, exact: false, ..driver.decision };
+    driver.preview = Some(preview);
+    driver.plan.clear();
+    driver.diagnostics.fallback = Some(error.to_string());
+    driver.diagnostics.fallbacks += 1;
+    driver.diagnostics.iterations = 0;
+    let change_to = (car.target_lane != car.lane).then_some(car.lane);
+    GtStep { command: Command { accel, preview }, change_to, driver }
+}

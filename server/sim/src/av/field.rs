@@ -1,0 +1,216 @@
+//! The potential field of §V-A: eq. (20) around each obstacle car, eq. (21) along each
+//! lane line and road edge, summed by eq. (19). The MPC puts it in its first output and
+//! linearises it along the predicted path. Positions are Frenet (s, d); an obstacle's
+//! heading is relative to the lane, so eq. (20)'s rotation works the same on the curve.
+
+use serde::{Deserialize, Serialize};
+
+use crate::road::{LaneId, Road};
+
+/// The field's constants; the paper names them but gives no values.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FieldParams {
+    /// a^oc of eq. (20), the obstacle's peak (dimensionless). 1, chosen here (the field
+    /// is a unitless output of the MPC; Q sets its weight).
+    pub obstacle_peak: f64,
+    /// rho_X of eq. (20) (m): longitudinal spread. 6, chosen here (a car length plus a
+    /// metre): the field fades within two car lengths.
+    pub rho_x: f64,
+    /// rho_Y of eq. (20) (m): lateral spread. 1.2, chosen here: a car one lane over (4 m)
+    /// sees under 1 % of the peak, so neighbours do not push each other apart.
+    pub rho_y: f64,
+    /// b of eq. (20), the shape exponent. 1 (a Gaussian), chosen here.
+    pub shape: f64,
+    /// c of eq. (20) (s/m): how far the field leans ahead of a moving car. 0.05, chosen
+    /// here: at 30 m/s the peak sits about 6 m ahead of the car's centre.
+    pub speed_skew: f64,
+    /// a^r of eq. (21) for a road edge (dimensionless). 0.2, chosen here: small at the
+    /// lane centre (0.1) so it does not bias lane keeping, 0.7 on the edge.
+    pub edge_peak: f64,
+    /// a^r of eq. (21) for a lane line between two lanes (dimensionless). 0.05, chosen
+    /// here: lane changes cross it.
+    pub line_peak: f64,
+    /// d-dagger of eq. (21) (m): the safety threshold. 0.3, chosen here.
+    pub safety_threshold: f64,
+    /// Obstacles farther than this along the road (m) are left out. 80, chosen here.
+    pub range: f64,
+}
+
+impl Default for FieldParams {
+    fn default() -> Self {
+        FieldParams {
+            obstacle_peak: 1.0,
+            rho_x: 6.0,
+            rho_y: 1.2,
+            shape: 1.0,
+            speed_skew: 0.05,
+            edge_peak: 0.2,
+            line_peak: 0.05,
+            safety_threshold: 0.3,
+            range: 80.0,
+        }
+    }
+}
+
+/// An obstacle car, predicted at constant speed along its lane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Obstacle {
+    /// Position along the road now (m).
+    pub s: f64,
+    /// Offset now (m).
+    pub d: f64,
+    /// Heading relative to the lane (rad).
+    pub heading: f64,
+    /// Speed (m/s).
+    pub speed: f64,
+}
+
+/// A lane line or road edge: a line of constant offset over a stretch of road.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Line {
+    /// Its offset (m).
+    pub d: f64,
+    /// a^r: edge or lane line.
+    pub peak: f64,
+    /// Where it starts and ends along the road (m).
+    pub from: f64,
+    /// See `from`.
+    pub to: f64,
+}
+
+/// Eq. (20): the field of one obstacle at (s, d).
+#[inline]
+pub fn obstacle_field(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> f64 {
+    let (sin, cos) = oc.heading.sin_cos();
+    let (ds, dd) = (s - oc.s, d - oc.d);
+    let x = cos * ds + sin * dd; // X-hat
+    let y = -sin * ds + cos * dd; // Y-hat
+    let along = x * x / (2.0 * p.rho_x * p.rho_x);
+    let q = along + y * y / (2.0 * p.rho_y * p.rho_y);
+    let k = if x < 0.0 { -1.0 } else { 1.0 };
+    let gamma = if q > 1e-12 { k * along / q.sqrt() } else { 0.0 };
+    let shaped = if p.shape == 1.0 { q } else { q.powf(p.shape) };
+    let theta = -shaped + p.speed_skew * oc.speed * gamma;
+    p.obstacle_peak * theta.exp() // eq. (20)
+}
+
+/// Eq. (21): the field of a line at `distance` (m) from it, for a car `width` wide (W).
+#[inline]
+pub fn road_field(p: &FieldParams, width: f64, peak: f64, distance: f64) -> f64 {
+    peak * (-distance + p.safety_threshold + 0.5 * width).exp() // eq. (21)
+}
+
+/// The lane lines and edges of a road: a boundary between two lanes is a lane line where
+/// both exist and an edge where only one does.
+pub fn road_lines(road: &Road, p: &FieldParams) -> Vec<Line> {
+    let (w, n) = (road.lane_width(), road.lane_count());
+    let end = |lane: usize| road.lane_end(LaneId(lane as u32));
+    let mut lines = Vec::with_capacity(2 * n + 1);
+    lines.push(Line { d: 0.5 * w, peak: p.edge_peak, from: 0.0, to: end(0) });
+    for j in 1..n {
+        let d = -(j as f64 - 0.5) * w;
+        let (both, one) = (end(j - 1).min(end(j)), end(j - 1).max(end(j)));
+        lines.push(Line { d, peak: p.line_peak, from: 0.0, to: both });
+        lines.push(Line { d, peak: p.edge_peak, from: both, to: one });
+    }
+    lines.push(Line { d: -(n as f64 - 0.5) * w, peak: p.edge_peak, from: 0.0, to: end(n - 1) });
+    lines
+}
+
+/// The field a car sees: obstacles and lines, evaluated at predicted instants.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Field {
+    /// The constants.
+    pub params: FieldParams,
+    /// W of eq. (21): the planning car's width (m), from `VehicleParams`.
+    pub width: f64,
+    /// Nearby cars.
+    pub obstacles: Vec<Obstacle>,
+    /// The road's lines.
+    pub lines: Vec<Line>,
+}
+
+impl Field {
+    /// Eq. (19) at (s, d), `t` seconds from now (obstacles moved on at their speed).
+    pub fn value(&self, s: f64, d: f64, t: f64) -> f64 {
+        let p = &self.params;
+        let cars: f64 =
+            self.obstacles.iter().map(|oc| obstacle_field(p, &Obstacle { s: oc.s + oc.speed * t, ..*oc }, s, d)).sum();
+        let road: f64 = self
+            .lines
+            .iter()
+            .filter(|line| (line.from..=line.to).contains(&s))
+            .map(|line| road_field(p, self.width, line.peak, (d - line.d).abs()))
+            .sum();
+        cars + road // eq. (19)
+    }
+
+    /// The field and its gradient (d/ds, d/dd) by central differences.
+    pub fn gradient(&self, s: f64, d: f64, t: f64) -> (f64, f64, f64) {
+        const H: f64 = 1e-3;
+        let value = self.value(s, d, t);
+        let ds = (self.value(s + H, d, t) - self.value(s - H, d, t)) / (2.0 * H);
+        let dd = (self.value(s, d + H, t) - self.value(s, d - H, t)) / (2.0 * H);
+        (value, ds, dd)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::road::{Pose, Section};
+
+    #[test]
+    fn obstacle_field_peaks_at_the_car_and_leans_ahead_when_moving() {
+        let p = FieldParams::default();
+        let still = Obstacle { s: 0.0, d: 0.0, heading: 0.0, speed: 0.0 };
+        assert!((obstacle_field(&p, &still, 0.0, 0.0) - p.obstacle_peak).abs() < 1e-12);
+        // Standing still it is symmetric; a Gaussian in each axis.
+        let ahead = obstacle_field(&p, &still, 6.0, 0.0);
+        assert!((ahead - obstacle_field(&p, &still, -6.0, 0.0)).abs() < 1e-12);
+        assert!((ahead - (-0.5f64).exp()).abs() < 1e-12);
+        let moving = Obstacle { speed: 30.0, ..still };
+        assert!(obstacle_field(&p, &moving, 6.0, 0.0) > obstacle_field(&p, &moving, -6.0, 0.0));
+        // One lane over, a car barely registers.
+        assert!(obstacle_field(&p, &moving, 0.0, 4.0) < 0.01);
+    }
+
+    #[test]
+    fn a_turned_obstacle_turns_its_field() {
+        let p = FieldParams { speed_skew: 0.0, ..FieldParams::default() };
+        let turned = Obstacle { s: 0.0, d: 0.0, heading: std::f64::consts::FRAC_PI_2, speed: 0.0 };
+        let straight = Obstacle { heading: 0.0, ..turned };
+        assert!((obstacle_field(&p, &turned, 0.0, 3.0) - obstacle_field(&p, &straight, 3.0, 0.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn road_lines_follow_lane_ends() {
+        let road = Road::new(
+            Pose { x: 0.0, y: 0.0, heading: 0.0 },
+            vec![Section::Straight { length: 500.0 }],
+            4.0,
+            vec![25.0, 25.0],
+            &[(LaneId(1), 200.0)],
+        );
+        let p = FieldParams::default();
+        let lines = road_lines(&road, &p);
+        let at =
+            |s: f64, d: f64| lines.iter().filter(move |l| l.d == d && (l.from..=l.to).contains(&s)).map(|l| l.peak);
+        assert_eq!(at(100.0, -2.0).collect::<Vec<_>>(), vec![p.line_peak]);
+        assert_eq!(at(300.0, -2.0).collect::<Vec<_>>(), [p.edge_peak]);
+        assert_eq!(at(300.0, -6.0).count(), 0);
+        assert_eq!(at(100.0, 2.0).collect::<Vec<_>>(), [p.edge_peak]);
+    }
+
+    #[test]
+    fn road_field_is_eq_21_and_grows_toward_its_line() {
+        let p = FieldParams::default();
+        assert!((road_field(&p, 2.0, 2.0, 1.3) - 2.0).abs() < 1e-12); // d = d-dagger + W/2
+        let line = Line { d: 2.0, peak: 1.0, from: 0.0, to: 100.0 };
+        let field = Field { params: p, width: 2.0, obstacles: vec![], lines: vec![line] };
+        let (value, ds, dd) = field.gradient(50.0, 0.5, 0.0);
+        assert!((value - road_field(&p, 2.0, 1.0, 1.5)).abs() < 1e-12);
+        assert!(ds.abs() < 1e-9 && dd > 0.0);
+        assert!((dd - value).abs() < 1e-5); // d/dd of exp(-(2 - d) + ...) is the value itself
+    }
+}

@@ -1,0 +1,570 @@
+//! The lane-change games of §IV: Nash equilibrium (eq. 15–16) and Stackelberg
+//! equilibrium (eq. 17–18) between the ego car (EC: an acceleration and a lane choice
+//! sigma) and the adjacent car of each side (AC: an acceleration only), on costs of
+//! eq. (9)–(14) averaged over predicted motion. Each side is its own two-player game
+//! (eq. 16c–f / 18c–f); EC keeps the side whose equilibrium costs it least (eq. 16a / 18a).
+//!
+//! The strategy sets are acceleration grids within [a_min, a_max], clipped so the speed
+//! stays within its bounds over the next control period.
+
+use serde::{Deserialize, Serialize};
+
+use super::costs::{self, CostComponents, CostParams};
+use super::prediction::{self, Kinematics, PredictionParams, SpeedBounds};
+use super::styles::CostWeights;
+use crate::dynamics::{LANE_CHANGE_DURATION, LateralPath};
+use crate::road::LaneChange;
+
+/// Which equilibrium a game-theoretic driver plays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Game {
+    /// Eq. (15)–(16): EC and AC as equal players, each a best response to the other.
+    Nash,
+    /// Eq. (17)–(18): EC leads, anticipating AC's best response; AC follows.
+    Stackelberg,
+}
+
+impl Game {
+    /// Both games, Nash first.
+    pub const ALL: [Game; 2] = [Game::Nash, Game::Stackelberg];
+
+    /// The lowercase name used in scenario files and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Game::Nash => "nash",
+            Game::Stackelberg => "stackelberg",
+        }
+    }
+}
+
+/// The strategy sets and the equilibrium options.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GameParams {
+    /// a_min of eq. (15) (m/s^2), for EC and AC alike. -4, chosen here (firm braking,
+    /// within the world's 6 m/s^2 limit).
+    pub accel_min: f64,
+    /// a_max of eq. (15) (m/s^2). 3, chosen here (highway-env's comfortable maximum).
+    pub accel_max: f64,
+    /// Spacing of the acceleration grid (m/s^2). 0.25, chosen here: 29 values per player,
+    /// fine enough to separate the styles, small enough for the 1 ms budget.
+    pub accel_step: f64,
+    /// v_min of eq. (15) (m/s). 0: cars do not reverse. v_max is each lane's speed limit.
+    pub speed_min: f64,
+    /// Relative tolerance on the follower's best-response set gamma of eq. (17b): AC
+    /// replies are kept whose cost is within (1 + tolerance) of the best. 0 (off): eq.
+    /// (17b) exactly. An option for docs/paper-reproduction.md's comparison.
+    pub follower_tolerance: f64,
+}
+
+impl Default for GameParams {
+    fn default() -> Self {
+        GameParams { accel_min: -4.0, accel_max: 3.0, accel_step: 0.25, speed_min: 0.0, follower_tolerance: 0.0 }
+    }
+}
+
+impl GameParams {
+    /// The acceleration grid for a car at `speed` within `bounds`, each value clipped to
+    /// what the next control period `dt` allows, duplicates dropped, ascending.
+    pub fn grid(&self, speed: f64, bounds: SpeedBounds, dt: f64) -> Vec<f64> {
+        let steps = ((self.accel_max - self.accel_min) / self.accel_step).round().max(0.0) as usize;
+        let mut grid: Vec<f64> = Vec::with_capacity(steps + 1);
+        for k in 0..=steps {
+            let a = (self.accel_min + k as f64 * self.accel_step).min(self.accel_max);
+            let a = prediction::feasible_accel(a, speed, bounds, dt);
+            if grid.last().is_none_or(|&last| a > last) {
+                grid.push(a);
+            }
+        }
+        grid
+    }
+}
+
+/// A bimatrix game: `rows` leader (EC) actions × `cols` follower (AC) actions, costs
+/// stored row-major.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PayoffTable {
+    /// Number of EC actions.
+    pub rows: usize,
+    /// Number of AC actions (1 when there is no AC).
+    pub cols: usize,
+    /// J^EC per (row, col).
+    pub ec: Vec<f64>,
+    /// J^AC per (row, col).
+    pub ac: Vec<f64>,
+}
+
+/// A chosen pair of actions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Profile {
+    /// EC's action.
+    pub row: usize,
+    /// AC's action (the one EC predicts).
+    pub col: usize,
+    /// False when Nash found no pure equilibrium (see `SideGame::nash`).
+    pub exact: bool,
+}
+
+impl PayoffTable {
+    fn ec(&self, row: usize, col: usize) -> f64 {
+        self.ec[row * self.cols + col]
+    }
+
+    fn ac(&self, row: usize, col: usize) -> f64 {
+        self.ac[row * self.cols + col]
+    }
+
+    /// AC's best reply to `row` (the first of equal ones).
+    pub fn best_reply(&self, row: usize) -> usize {
+        (0..self.cols).fold(0, |best, col| if self.ac(row, col) < self.ac(row, best) { col } else { best })
+    }
+
+    /// Eq. (15): a pure Nash equilibrium, each action a best response to the other; of
+    /// several, the one EC prefers. `None` when the table has none.
+    pub fn nash(&self) -> Option<Profile> {
+        let ec_best: Vec<f64> = (0..self.cols)
+            .map(|col| (0..self.rows).map(|row| self.ec(row, col)).fold(f64::INFINITY, f64::min))
+            .collect();
+        let mut best: Option<(usize, usize)> = None;
+        for row in 0..self.rows {
+            let col = self.best_reply(row); // eq. (15b)
+            let is_equilibrium = self.ec(row, col) <= ec_best[col]; // eq. (15a)
+            if is_equilibrium && best.is_none_or(|(r, c)| self.ec(row, col) < self.ec(r, c)) {
+                best = Some((row, col));
+            }
+        }
+        best.map(|(row, col)| Profile { row, col, exact: true })
+    }
+
+    /// Of the rows `allowed`, the one whose cost against AC's best reply is least, as
+    /// an inexact profile: what EC does when there is no equilibrium to play.
+    fn best_against_replies(&self, allowed: impl Iterator<Item = usize>) -> Profile {
+        let mut best = (f64::INFINITY, 0, 0);
+        for row in allowed {
+            let col = self.best_reply(row);
+            if self.ec(row, col) < best.0 {
+                best = (self.ec(row, col), row, col);
+            }
+        }
+        Profile { row: best.1, col: best.2, exact: false }
+    }
+
+    /// Eq. (17): EC minimises its worst cost over AC's best-response set gamma (eq. 17b:
+    /// every reply no worse than any other; with `tolerance` > 0, every reply within
+    /// (1 + tolerance) of the best). `col` is the reply EC guards against.
+    pub fn stackelberg(&self, tolerance: f64) -> Profile {
+        let mut best = (f64::INFINITY, 0, 0);
+        for row in 0..self.rows {
+            let floor = self.ac(row, self.best_reply(row));
+            let bound = floor + tolerance * floor.abs();
+            let mut worst = (f64::NEG_INFINITY, 0);
+            for col in 0..self.cols {
+                if self.ac(row, col) <= bound && self.ec(row, col) > worst.0 {
+                    worst = (self.ec(row, col), col); // eq. (17b), then the max of (17a)
+                }
+            }
+            if worst.0 < best.0 {
+                best = (worst.0, row, worst.1); // eq. (17a)'s min
+            }
+        }
+        Profile { row: best.1, col: best.2, exact: true }
+    }
+}
+
+/// A car whose cost enters a game: where it is, how it weighs the costs, its speed bounds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Player {
+    /// Now.
+    pub now: Kinematics,
+    /// Table III for its style.
+    pub weights: CostWeights,
+    /// v_min and v_max of its lane.
+    pub bounds: SpeedBounds,
+}
+
+/// The adjacent car of one side, with what its own costs need.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Adjacent {
+    /// AC itself (bounds: its lane's).
+    pub player: Player,
+    /// Its lead obstacle for eq. (11) (a car or its lane's end), other than EC.
+    pub leader: Option<Kinematics>,
+    /// Its lead car for eq. (14), other than EC.
+    pub lead: Option<Kinematics>,
+}
+
+/// One lane EC may choose: its own (sigma = 0) or a neighbour (sigma = -1 left, +1 right).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaneOption {
+    /// -1, 0 or 1.
+    pub sigma: i8,
+    /// The lane's centre (m).
+    pub centre: f64,
+    /// v_max there (m/s).
+    pub speed_limit: f64,
+    /// EC's lead obstacle for eq. (11) in this lane (a car, or the lane's end as a
+    /// stopped car). Used for sigma = 0.
+    pub leader: Option<Kinematics>,
+    /// EC's lead car for eq. (14) in this lane, other than AC (lane ends excluded).
+    pub lead: Option<Kinematics>,
+    /// The adjacent car of this lane (sigma != 0 only).
+    pub adjacent: Option<Adjacent>,
+}
+
+/// Everything a decision reads, taken from the world by `driver`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Situation {
+    /// EC (bounds: its current lane's).
+    pub ego: Player,
+    /// EC's own lane.
+    pub keep: LaneOption,
+    /// Left (sigma = -1) and right (sigma = +1) lanes, where they can be chosen.
+    pub sides: [Option<LaneOption>; 2],
+    /// The side of a lane change under way: EC then chooses only its acceleration.
+    pub committed: Option<i8>,
+    /// Lane width (m), for a_y of eq. (13).
+    pub lane_width: f64,
+    /// l_v of eq. (11c)/(12c): one car length (m).
+    pub car_length: f64,
+    /// Control period (s): the strategies must keep the speed in bounds over it.
+    pub period: f64,
+}
+
+/// All constants of the decision layer.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct DecisionParams {
+    /// eq. (10)–(14).
+    pub costs: CostParams,
+    /// The horizon the costs are averaged over.
+    pub prediction: PredictionParams,
+    /// Strategy sets and equilibrium options.
+    pub game: GameParams,
+}
+
+/// What a game decided for EC.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Decision {
+    /// a_x* (m/s^2).
+    pub accel: f64,
+    /// sigma*: the lane change chosen.
+    pub lane_change: LaneChange,
+    /// EC's predicted cost components at the chosen profile (mean over the horizon).
+    pub predicted: CostComponents,
+    /// J^EC of eq. (9) at the chosen profile.
+    pub cost: f64,
+    /// The adjacent car's acceleration EC predicts in the chosen side's game.
+    pub response: Option<f64>,
+    /// False when Nash had no pure equilibrium (EC then kept its current lane decision)
+    /// or the driver fell back to its safe command.
+    pub exact: bool,
+}
+
+/// One side's game, built: the actions and the tables.
+#[derive(Debug, Clone)]
+pub struct SideGame {
+    /// EC's actions: (acceleration, sigma).
+    pub ec_actions: Vec<(f64, i8)>,
+    /// AC's accelerations (one 0 when there is no AC).
+    pub ac_actions: Vec<f64>,
+    /// The costs.
+    pub table: PayoffTable,
+    pub(crate) option: Option<LaneOption>,
+}
+
+impl SideGame {
+    /// Eq. (15) on this side's game. With no pure equilibrium, no lane change starts from
+    /// a profile that is not one: EC keeps its current lane decision (the rows of the
+    /// lane change under way, else those that keep the lane), taking its best row
+    /// against AC's best replies, and the profile is marked inexact.
+    pub fn nash(&self) -> Profile {
+        if let Some(profile) = self.table.nash() {
+            return profile;
+        }
+        let committed = self.ec_actions.iter().all(|&(_, sigma)| sigma != 0);
+        let current = |row: &usize| committed || self.ec_actions[*row].1 == 0;
+        self.table.best_against_replies((0..self.table.rows).filter(current))
+    }
+}
+
+/// The predicted samples every entry of a side's tables reads.
+struct Samples {
+    ec: Vec<Vec<Kinematics>>,
+    ac: Vec<Vec<Kinematics>>,
+    leader: Vec<Kinematics>,
+    lead: Vec<Kinematics>,
+    lead_side: Vec<Kinematics>,
+    ac_leader: Vec<Kinematics>,
+    ac_lead: Vec<Kinematics>,
+}
+
+fn constant_speed(p: &PredictionParams, car: Option<Kinematics>) -> Vec<Kinematics> {
+    let mut out = Vec::new();
+    if let Some(car) = car {
+        let bounds = SpeedBounds { min: 0.0, max: f64::INFINITY };
+        prediction::predict(p, car, 0.0, bounds, None, &mut out);
+    }
+    out
+}
+
+impl Situation {
+    fn option(&self, sigma: i8) -> Option<&LaneOption> {
+        match sigma {
+            0 => Some(&self.keep),
+            -1 => self.sides[0].as_ref(),
+            _ => self.sides[1].as_ref(),
+        }
+    }
+
+    fn ego_bounds(&self, option: &LaneOption, params: &GameParams) -> SpeedBounds {
+        SpeedBounds { min: params.speed_min, max: option.speed_limit }
+    }
+
+    /// The lateral path of a lane change to `option` starting now, shortened in
+    /// proportion when part of the way is already done.
+    fn lane_change_path(&self, option: &LaneOption) -> LateralPath {
+        let remaining = ((option.centre - self.ego.now.d).abs() / self.lane_width).clamp(0.25, 1.0);
+        LateralPath { from: self.ego.now.d, to: option.centre, start: 0.0, duration: LANE_CHANGE_DURATION * remaining }
+    }
+
+    /// EC's actions for the game of side `side` (-1 or +1). A lane change under way
+    /// binds only while its lane is still an option.
+    fn ec_actions(&self, side: i8, params: &GameParams) -> Vec<(f64, i8)> {
+        let committed = self.committed.filter(|&c| self.option(c).is_some());
+        let sigmas: &[i8] = match committed {
+            Some(c) if c == side => &[side][..],
+            Some(_) => &[],
+            None if self.option(side).is_some() => &[0, side][..],
+            None => &[0][..],
+        };
+        let mut actions = Vec::new();
+        for &sigma in sigmas {
+            let Some(option) = self.option(sigma) else { continue };
+            let bounds = self.ego_bounds(option, params);
+            actions.extend(params.grid(self.ego.now.speed, bounds, self.period).into_iter().map(|a| (a, sigma)));
+        }
+        actions
+    }
+
+    /// Builds the game of side `side` (eq. 16c–f / 18c–f) with its two cost tables.
+    pub fn side_game(&self, side: i8, params: &DecisionParams) -> SideGame {
+        let ec_actions = self.ec_actions(side, &params.game);
+        let option = self.option(side).copied();
+        let adjacent = option.and_then(|o| o.adjacent);
+        let ac_actions =
+            adjacent.map_or(vec![0.0], |ac| params.game.grid(ac.player.now.speed, ac.player.bounds, self.period));
+        self.side_game_with(side, ec_actions, ac_actions, params)
+    }
+
+    /// Builds side `side`'s game for the given actions (a row or column may be a single
+    /// action, as a follower replying to one observed decision needs).
+    pub fn side_game_with(
+        &self,
+        side: i8,
+        ec_actions: Vec<(f64, i8)>,
+        ac_actions: Vec<f64>,
+        params: &DecisionParams,
+    ) -> SideGame {
+        let option = self.option(side).copied();
+        let samples = self.samples(&ec_actions, &ac_actions, option.as_ref(), params);
+        let (rows, cols) = (ec_actions.len(), ac_actions.len());
+        let mut table = PayoffTable { rows, cols, ec: vec![0.0; rows * cols], ac: vec![0.0; rows * cols] };
+        // While EC keeps its lane, its cost does not depend on AC's action nor AC's on
+        // EC's: one column per row and one row of AC costs serve all those rows.
+        let mut keeping: Option<Vec<f64>> = None;
+        for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
+            let entry = |col: usize| {
+                let ac_accel = ac_actions[col];
+                let (ec, ac) = self.entry(&samples, row, col, accel, sigma, ac_accel, option.as_ref(), params);
+                (ec.weighted_by(&self.ego.weights), ac)
+            };
+            let cells = &mut table.ec[row * cols..(row + 1) * cols];
+            let replies = &mut table.ac[row * cols..(row + 1) * cols];
+            match (sigma, &keeping) {
+                (0, Some(alone)) => {
+                    cells.fill(entry(0).0);
+                    replies.copy_from_slice(alone);
+                }
+                _ => {
+                    for col in 0..cols {
+                        (cells[col], replies[col]) = entry(col);
+                    }
+                    if sigma == 0 {
+                        keeping = Some(replies.to_vec());
+                    }
+                }
+            }
+        }
+        SideGame { ec_actions, ac_actions, table, option }
+    }
+
+    fn samples(
+        &self,
+        ec_actions: &[(f64, i8)],
+        ac_actions: &[f64],
+        option: Option<&LaneOption>,
+        params: &DecisionParams,
+    ) -> Samples {
+        let p = &params.prediction;
+        let ec = ec_actions
+            .iter()
+            .map(|&(accel, sigma)| {
+                let mut out = Vec::new();
+                let target = self.option(sigma).unwrap_or(&self.keep);
+                let bounds = self.ego_bounds(target, &params.game);
+                let path = (sigma != 0).then(|| self.lane_change_path(target));
+                prediction::predict(p, self.ego.now, accel, bounds, path.as_ref(), &mut out);
+                out
+            })
+            .collect();
+        let adjacent = option.and_then(|o| o.adjacent);
+        let ac = match adjacent {
+            Some(adj) => ac_actions
+                .iter()
+                .map(|&accel| {
+                    let mut out = Vec::new();
+                    prediction::predict(p, adj.player.now, accel, adj.player.bounds, None, &mut out);
+                    out
+                })
+                .collect(),
+            None => Vec::new(),
+        };
+        Samples {
+            ec,
+            ac,
+            leader: constant_speed(p, self.keep.leader),
+            lead: constant_speed(p, self.keep.lead),
+            lead_side: constant_speed(p, option.filter(|o| o.sigma != 0).and_then(|o| o.lead)),
+            ac_leader: constant_speed(p, adjacent.and_then(|a| a.leader)),
+            ac_lead: constant_speed(p, adjacent.and_then(|a| a.lead)),
+        }
+    }
+
+    /// EC's cost components and AC's weighted cost for one profile, averaged over the
+    /// predicted samples.
+    #[allow(clippy::too_many_arguments)]
+    fn entry(
+        &self,
+        samples: &Samples,
+        row: usize,
+        col: usize,
+        accel: f64,
+        sigma: i8,
+        ac_accel: f64,
+        option: Option<&LaneOption>,
+        params: &DecisionParams,
+    ) -> (CostComponents, f64) {
+        let c = &params.costs;
+        let ec_path = &samples.ec[row];
+        let ac_path = samples.ac.get(col);
+        let target = self.option(sigma).unwrap_or(&self.keep);
+        let lateral_accel = prediction::lane_change_accel(self.lane_width);
+        let ec_comfort = costs::comfort(c, sigma, accel, lateral_accel);
+        let ac_comfort = costs::comfort(c, 0, ac_accel, 0.0);
+        let adjacent = option.and_then(|o| o.adjacent);
+        let (mut ec_sum, mut ac_sum) = (CostComponents::default(), 0.0);
+        for (k, &ego) in ec_path.iter().enumerate() {
+            let ac = ac_path.map(|path| path[k]);
+            let (lead, ec_lead_extra) = if sigma == 0 {
+                (samples.lead.get(k).copied(), None)
+            } else {
+                (samples.lead_side.get(k).copied(), ac.filter(|ac| ac.s >= ego.s))
+            };
+            let lateral = match (sigma, ac) {
+                (0, _) | (_, None) => 0.0,
+                (_, Some(ac)) => costs::lateral_safety(c, self.car_length, ego, ac),
+            };
+            let longitudinal = match sigma {
+                0 => samples
+                    .leader
+                    .get(k)
+                    .map_or(0.0, |&leader| costs::longitudinal_safety(c, self.car_length, ego, leader)),
+                _ => 0.0, // eq. (10): (sigma^2 - 1)^2 = 0
+            };
+            let limit = target.speed_limit;
+            let v_bar = costs::target_speed(c, ego, limit, lead).min(costs::target_speed(c, ego, limit, ec_lead_extra));
+            ec_sum = ec_sum
+                + CostComponents {
+                    safety: costs::safety(sigma, longitudinal, lateral),
+                    comfort: ec_comfort,
+                    efficiency: costs::efficiency(ego.speed, v_bar),
+                };
+            if let (Some(ac), Some(adj)) = (ac, adjacent) {
+                ac_sum += self.ac_cost(samples, k, ego, ac, &adj, sigma, ac_comfort, lateral, c);
+            }
+        }
+        let n = ec_path.len().max(1) as f64;
+        (ec_sum * (1.0 / n), ac_sum / n)
+    }
+
+    /// J^AC at one sample: its own lead obstacle while EC keeps its lane, the shared
+    /// lateral term while EC comes over (§IV-A), its comfort and efficiency.
+    #[allow(clippy::too_many_arguments)]
+    fn ac_cost(
+        &self,
+        samples: &Samples,
+        k: usize,
+        ego: Kinematics,
+        ac: Kinematics,
+        adj: &Adjacent,
+        sigma: i8,
+        comfort: f64,
+        lateral: f64,
+        c: &CostParams,
+    ) -> f64 {
+        let longitudinal = match sigma {
+            0 => samples
+                .ac_leader
+                .get(k)
+                .map_or(0.0, |&leader| costs::longitudinal_safety(c, self.car_length, ac, leader)),
+            _ => 0.0, // eq. (10): (sigma^2 - 1)^2 = 0
+        };
+        let limit = adj.player.bounds.max;
+        let mut v_bar = costs::target_speed(c, ac, limit, samples.ac_lead.get(k).copied());
+        if sigma != 0 {
+            v_bar = v_bar.min(costs::target_speed(c, ac, limit, Some(ego)));
+        }
+        let parts = CostComponents {
+            safety: costs::safety(sigma, longitudinal, lateral),
+            comfort,
+            efficiency: costs::efficiency(ac.speed, v_bar),
+        };
+        parts.weighted_by(&adj.player.weights)
+    }
+
+    /// EC's unweighted cost components at one profile of a side's game.
+    fn components(&self, game: &SideGame, profile: Profile, params: &DecisionParams) -> CostComponents {
+        let (accel, sigma) = game.ec_actions[profile.row];
+        let ac_accel = game.ac_actions[profile.col];
+        let ec_actions = vec![(accel, sigma)];
+        let ac_actions = vec![ac_accel];
+        let samples = self.samples(&ec_actions, &ac_actions, game.option.as_ref(), params);
+        self.entry(&samples, 0, 0, accel, sigma, ac_accel, game.option.as_ref(), params).0
+    }
+
+    /// EC's decision: each side's equilibrium (eq. 16c–f or 18c–f), then the cheaper
+    /// side (eq. 16a / 18a; on a tie the left one, whose game is built first).
+    pub fn decide(&self, game: Game, params: &DecisionParams) -> Decision {
+        let mut best: Option<(f64, SideGame, Profile)> = None;
+        for side in [-1, 1] {
+            let side_game = self.side_game(side, params);
+            if side_game.ec_actions.is_empty() {
+                continue;
+            }
+            let profile = match game {
+                Game::Nash => side_game.nash(),
+                Game::Stackelberg => side_game.table.stackelberg(params.game.follower_tolerance),
+            };
+            let cost = side_game.table.ec(profile.row, profile.col);
+            if best.as_ref().is_none_or(|(b, ..)| cost < *b) {
+                best = Some((cost, side_game, profile));
+            }
+        }
+        let Some((cost, side_game, profile)) = best else {
+            return Decision { exact: false, ..Decision::default() };
+        };
+        let (accel, sigma) = side_game.ec_actions[profile.row];
+        let response = side_game.option.and_then(|o| o.adjacent).map(|_| side_game.ac_actions[profile.col]);
+        let predicted = self.components(&side_game, profile, params);
+        Decision { accel, lane_change: LaneChange::from_sigma(sigma), predicted, cost, response, exact: profile.exact }
+    }
+}

@@ -1,0 +1,152 @@
+use super::*;
+use crate::av::field::{FieldParams, Obstacle, road_lines};
+use crate::dynamics::Style;
+use crate::road::Road;
+
+fn straight_field(road: &Road) -> Field {
+    let params = FieldParams::default();
+    Field { params, width: 2.0, obstacles: vec![], lines: road_lines(road, &params) }
+}
+
+/// Closed loop: the MPC plans every 0.1 s, the model integrates at 100 Hz.
+fn lane_change(style: Style, speed: f64, from: f64, to: f64, seconds: f64) -> (Vec<f64>, u32, f64) {
+    let road = Road::straight(2000.0, 3, 4.0, 30.0);
+    let field = straight_field(&road);
+    let (vehicle, driver) = (VehicleParams::default(), DriverParams::for_style(style));
+    let params = MpcParams::default();
+    let mut mpc = Mpc::new();
+    let mut state = VehicleState::cruising(0.0, from, speed);
+    let (mut preview, mut plan, mut offsets, mut iterations) = (from, Vec::new(), Vec::new(), 0);
+    let mut peak = 0.0f64;
+    for _ in 0..(seconds * 10.0) as usize {
+        let problem = MpcProblem {
+            state,
+            accel: 0.0,
+            previous_preview: preview,
+            target: to,
+            curvature: 0.0,
+            vehicle: &vehicle,
+            driver: &driver,
+            dt: 0.1,
+            field: &field,
+            nominal: &plan,
+            preview_bounds: (-10.0, 2.0),
+        };
+        let solution = mpc.solve(&problem, &params).expect("the lane-change QP solves");
+        iterations = iterations.max(solution.iterations);
+        (preview, plan) = (solution.preview, solution.plan);
+        for _ in 0..10 {
+            state = dynamics::step(&state, Command { accel: 0.0, preview }, 0.0, 0.01, &vehicle, &driver);
+            peak = peak.max(state.lateral_accel(&vehicle).abs());
+        }
+        offsets.push(state.d);
+    }
+    (offsets, iterations, peak)
+}
+
+#[test]
+fn a_lane_change_settles_without_overshoot_for_every_style_and_speed() {
+    for style in Style::ALL {
+        for speed in [15.0, 20.0, 30.0] {
+            let (offsets, _, peak) = lane_change(style, speed, -4.0, 0.0, 10.0);
+            let overshoot = offsets.iter().fold(f64::NEG_INFINITY, |m, &d| m.max(d));
+            let settled = offsets.iter().rposition(|d| d.abs() > 0.2).map_or(0.0, |k| (k + 1) as f64 * 0.1);
+            assert!(overshoot < 0.2, "{style:?} at {speed} m/s overshoots by {overshoot:.3} m");
+            assert!(settled < 5.0, "{style:?} at {speed} m/s settles only at {settled:.1} s");
+            // A lane change, not a swerve: the preview point moves at most max_step per period.
+            assert!(peak < 2.5, "{style:?} at {speed} m/s: peak lateral acceleration {peak:.2} m/s^2");
+            assert!(offsets[19] < -1.5, "{style:?} at {speed} m/s is already at {:.2} m after 2 s", offsets[19]);
+        }
+    }
+}
+
+#[test]
+fn lane_keeping_stays_on_the_centre_between_the_lines() {
+    let (offsets, iterations, _) = lane_change(Style::Normal, 25.0, -4.0, -4.0, 5.0);
+    assert!(offsets.iter().all(|d| (d + 4.0).abs() < 0.05), "{offsets:?}");
+    assert!(iterations > 0 && iterations < 50);
+}
+
+#[test]
+fn the_field_pushes_the_plan_away_from_an_obstacle_beside_the_path() {
+    let road = Road::straight(2000.0, 3, 4.0, 30.0);
+    let (vehicle, driver) = (VehicleParams::default(), DriverParams::default());
+    let mut field = straight_field(&road);
+    let state = VehicleState::cruising(0.0, -4.0, 20.0);
+    let problem = |field: &Field| {
+        let p = MpcProblem {
+            state,
+            accel: 0.0,
+            previous_preview: -4.0,
+            target: -4.0,
+            curvature: 0.0,
+            vehicle: &vehicle,
+            driver: &driver,
+            dt: 0.1,
+            field,
+            nominal: &[],
+            preview_bounds: (-10.0, 2.0),
+        };
+        Mpc::new().solve(&p, &MpcParams::default()).unwrap().preview
+    };
+    let free = problem(&field);
+    // A car creeping just to the left, level with us: we move right.
+    field.obstacles.push(Obstacle { s: 5.0, d: -2.6, heading: 0.0, speed: 20.0 });
+    let pushed = problem(&field);
+    assert!(pushed < free - 0.05, "free {free}, pushed {pushed}");
+}
+
+#[test]
+fn a_reused_solver_returns_the_same_bits_as_a_fresh_one() {
+    let road = Road::straight(2000.0, 3, 4.0, 30.0);
+    let field = straight_field(&road);
+    let (vehicle, driver) = (VehicleParams::default(), DriverParams::default());
+    let params = MpcParams::default();
+    let make = |d: f64, target: f64| MpcProblem {
+        state: VehicleState { heading: 0.01, ..VehicleState::cruising(10.0, d, 22.0) },
+        accel: 1.0,
+        previous_preview: d,
+        target,
+        curvature: 0.0,
+        vehicle: &vehicle,
+        driver: &driver,
+        dt: 0.1,
+        field: &field,
+        nominal: &[],
+        preview_bounds: (-10.0, 2.0),
+    };
+    let (x, y) = (make(-4.0, 0.0), make(-1.0, -8.0));
+    let fresh = Mpc::new().solve(&x, &params).unwrap();
+    let mut reused = Mpc::new();
+    reused.solve(&y, &params).unwrap();
+    reused.solve(&x, &params).unwrap();
+    let again = reused.solve(&x, &params).unwrap();
+    let bits = |s: &MpcSolution| s.plan.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&fresh), bits(&again));
+    assert_eq!(fresh.preview.to_bits(), again.preview.to_bits());
+}
+
+#[test]
+fn an_infeasible_qp_is_an_error_not_a_panic() {
+    let n = MpcParams::default().control_horizon;
+    let qp = Qp { p: DMatrix::identity(n, n), q: DVector::zeros(n), b: vec![-1.0; 4 * n] };
+    let error = Mpc::new().solve_qp(&qp).unwrap_err();
+    assert!(matches!(error, MpcError::Solver(_)), "{error:?}");
+    let road = Road::straight(2000.0, 3, 4.0, 30.0);
+    let field = straight_field(&road);
+    let (vehicle, driver) = (VehicleParams::default(), DriverParams::default());
+    let broken = MpcProblem {
+        state: VehicleState { yaw_rate: f64::NAN, ..VehicleState::cruising(0.0, 0.0, 20.0) },
+        accel: 0.0,
+        previous_preview: 0.0,
+        target: 0.0,
+        curvature: 0.0,
+        vehicle: &vehicle,
+        driver: &driver,
+        dt: 0.1,
+        field: &field,
+        nominal: &[],
+        preview_bounds: (-10.0, 2.0),
+    };
+    assert_eq!(Mpc::new().solve(&broken, &MpcParams::default()), Err(MpcError::NonFinite));
+}

@@ -1,0 +1,303 @@
+use super::*;
+use crate::dynamics::Style;
+use crate::road::LaneChange;
+use crate::road::{LaneId, Pose, Road, Section};
+use crate::scene::Role;
+use crate::world::{AgentCommand, Driver, Status, Vehicle, VehicleId, World, WorldParams};
+
+/// What the AV would decide in vehicle `id`'s place, with the vehicle's own constants.
+fn expert(world: &mut World, id: VehicleId, game: Game) -> Decision {
+    let params = world.av_params(id);
+    expert_decision(world.scene(), id, game, &params)
+}
+
+/// The `gt` driver of vehicle `id`, planning once from the world as it is.
+fn plan_of(world: &mut World, id: VehicleId) -> GtStep {
+    let Driver::Gt(gt) = world.vehicle(id).driver.clone() else { panic!("not a gt car") };
+    plan(world.scene(), id, &gt, None)
+}
+
+fn cost_now(world: &mut World, id: VehicleId) -> CostComponents {
+    let params = world.av_params(id);
+    stage_cost(world.scene(), id, &params)
+}
+
+fn table(ec: &[&[f64]], ac: &[&[f64]]) -> PayoffTable {
+    PayoffTable {
+        rows: ec.len(),
+        cols: ec[0].len(),
+        ec: ec.iter().flat_map(|r| r.iter().copied()).collect(),
+        ac: ac.iter().flat_map(|r| r.iter().copied()).collect(),
+    }
+}
+
+#[test]
+fn nash_is_mutual_best_response_and_stackelberg_leads() {
+    // AC answers r0 with c0 and r1 with c1; EC's best answer to either column is r1, so
+    // (r1, c1) is the only equilibrium (EC pays 3). Leading, EC plays r0 and pays 2.
+    let t = table(&[&[2.0, 4.0], &[1.0, 3.0]], &[&[1.0, 2.0], &[3.0, 1.0]]);
+    assert_eq!(t.nash(), Some(Profile { row: 1, col: 1, exact: true }));
+    assert_eq!(t.stackelberg(0.0), Profile { row: 0, col: 0, exact: true });
+}
+
+#[test]
+fn without_a_pure_equilibrium_nash_keeps_the_lane_and_says_it_is_inexact() {
+    // Row 0 keeps the lane, row 1 changes left. AC answers r0 with c1 and r1 with c0, and
+    // EC's best answer to c1 is r1, to c0 is r0: no pure equilibrium.
+    let t = table(&[&[0.0, 2.0], &[1.0, 0.0]], &[&[2.0, 0.0], &[0.0, 1.0]]);
+    assert_eq!(t.nash(), None);
+    // The least-regret profile (the larger of the two players' regrets, least) is the
+    // lane change (r1, c0): regret 1 against 2 for both profiles of r0.
+    let regret = |r: usize, c: usize| {
+        let ec_best = (0..2).map(|row| t.ec[row * 2 + c]).fold(f64::INFINITY, f64::min);
+        let ac_best = (0..2).map(|col| t.ac[r * 2 + col]).fold(f64::INFINITY, f64::min);
+        (t.ec[r * 2 + c] - ec_best).max(t.ac[r * 2 + c] - ac_best)
+    };
+    assert!(regret(1, 0) < regret(0, 0) && regret(1, 0) < regret(0, 1));
+    let game = SideGame { ec_actions: vec![(0.0, 0), (0.0, -1)], ac_actions: vec![-1.0, 1.0], table: t, option: None };
+    let profile = game.nash();
+    assert_eq!(profile, Profile { row: 0, col: 1, exact: false });
+    assert_eq!(game.ec_actions[profile.row].1, 0, "keeps the lane");
+}
+
+#[test]
+fn the_follower_set_includes_ties_and_widens_with_the_tolerance() {
+    // r0: AC's best is c0 (1.0), c1 is 5 % worse; r1: AC is indifferent, EC pays 3 either way.
+    let t = table(&[&[1.0, 5.0], &[3.0, 3.0]], &[&[1.0, 1.05], &[1.0, 1.0]]);
+    assert_eq!(t.stackelberg(0.0).row, 0);
+    // With a 10 % tolerance EC must guard against c1 after r0 (cost 5) and prefers r1.
+    assert_eq!(t.stackelberg(0.1), Profile { row: 1, col: 0, exact: true });
+    // Exact ties are in gamma (eq. 17b): EC guards against the worse of two equal replies.
+    let tie = table(&[&[1.0, 4.0], &[2.0, 2.0]], &[&[1.0, 1.0], &[0.0, 1.0]]);
+    assert_eq!(tie.stackelberg(0.0).row, 1);
+}
+
+#[test]
+fn the_leader_never_pays_more_than_at_a_nash_equilibrium() {
+    // Random tables (no ties): the Stackelberg leader can always play its Nash action and
+    // get the same reply, so its cost is at most the Nash cost (docs/design.md, "Nash and Stackelberg").
+    let mut seed = 12345u64;
+    let mut next = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for _ in 0..500 {
+        let (rows, cols) = (4, 5);
+        let t = PayoffTable {
+            rows,
+            cols,
+            ec: (0..rows * cols).map(|_| next()).collect(),
+            ac: (0..rows * cols).map(|_| next()).collect(),
+        };
+        let (nash, stackelberg) = (t.nash(), t.stackelberg(0.0));
+        if let Some(nash) = nash {
+            let cost = |p: Profile| t.ec[p.row * cols + p.col];
+            assert!(cost(stackelberg) <= cost(nash), "{t:?}");
+        }
+    }
+}
+
+fn merge_road(lane_end: f64) -> Road {
+    Road::new(
+        Pose { x: 0.0, y: 0.0, heading: 0.0 },
+        vec![Section::Straight { length: 1000.0 }],
+        4.0,
+        vec![25.0, 25.0, 25.0],
+        &[(LaneId(2), lane_end)],
+    )
+}
+
+fn gt(game: Game, role: Role) -> Driver {
+    Driver::Gt(Box::new(GtDriver::new(game, role, AvParams::default())))
+}
+
+fn world_with(road: Road, cars: &[(&str, u32, f64, f64, Style, Driver)]) -> World {
+    let mut world = World::new(road.clone(), WorldParams::default(), 0);
+    for (name, lane, s, speed, style, driver) in cars {
+        let mut vehicle = Vehicle::new(name, &road, LaneId(*lane), *s, *speed, *style, driver.clone());
+        vehicle.target_speed = road.speed_limit(LaneId(*lane)); // everyone aims for the limit
+        world.add(vehicle);
+    }
+    world
+}
+
+#[test]
+fn styles_choose_their_acceleration_on_an_open_road() {
+    let accel = |style| {
+        let mut world = world_with(merge_road(1000.0), &[("ec", 1, 100.0, 18.0, style, gt(Game::Nash, Role::Leader))]);
+        expert(&mut world, VehicleId(0), Game::Nash)
+    };
+    let [a, n, c] = Style::ALL.map(accel);
+    assert!(a.accel > n.accel && n.accel >= c.accel, "{a:?} {n:?} {c:?}");
+    assert!(a.accel > 0.0 && [a, n, c].iter().all(|d| d.lane_change == LaneChange::Keep && d.exact));
+    let params = GameParams::default();
+    assert!([a, n, c].iter().all(|d| (params.accel_min..=params.accel_max).contains(&d.accel)));
+}
+
+#[test]
+fn a_car_alongside_blocks_the_change_and_an_empty_lane_takes_it() {
+    // A stopped car 60 m ahead in the middle lane (braking at 4 m/s^2 stops in 50 m); lane 0
+    // has a car alongside, lane 2 is empty.
+    let stopped = Driver::Agent(AgentCommand::Direct(crate::dynamics::Command { accel: 0.0, preview: -4.0 }));
+    let cars = [
+        ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
+        ("stop", 1, 160.0, 0.0, Style::Normal, stopped),
+        ("beside", 0, 101.0, 20.0, Style::Normal, Driver::Idm),
+    ];
+    for game in Game::ALL {
+        let mut world = world_with(merge_road(1000.0), &cars);
+        let decision = expert(&mut world, VehicleId(0), game);
+        assert_eq!(decision.lane_change, LaneChange::Right, "{game:?}: {decision:?}");
+    }
+    // With lane 2 ending soon, it is no option, and EC does not squeeze in beside the car.
+    let mut world = world_with(merge_road(150.0), &cars);
+    let decision = expert(&mut world, VehicleId(0), Game::Stackelberg);
+    assert_eq!(decision.lane_change, LaneChange::Keep, "{decision:?}");
+    assert!(decision.accel < 0.0, "it must brake for the stopped car: {decision:?}");
+}
+
+#[test]
+fn the_follower_yields_to_a_leader_that_merges_ahead_of_it() {
+    // EC 8 m ahead of AC, committed to AC's lane: AC brakes (or at least does not speed
+    // up) compared with having no one to answer.
+    let cars = [
+        ("ec", 1, 108.0, 20.0, Style::Normal, gt(Game::Stackelberg, Role::Leader)),
+        ("ac", 0, 100.0, 22.0, Style::Normal, gt(Game::Stackelberg, Role::Follower)),
+    ];
+    let mut world = world_with(merge_road(1000.0), &cars);
+    world.change_lane(VehicleId(0), LaneId(0));
+    let merging = plan_of(&mut world, VehicleId(1)).driver.decision.accel;
+    let mut alone = world_with(merge_road(1000.0), &cars[1..]);
+    let free = plan_of(&mut alone, VehicleId(0)).driver.decision.accel;
+    assert!(merging < free, "merging {merging} free {free}");
+}
+
+#[test]
+fn stage_cost_switches_terms_with_the_lane_change() {
+    let cars = [
+        ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
+        ("lead", 1, 125.0, 15.0, Style::Normal, Driver::Idm),
+        ("ac", 0, 90.0, 20.0, Style::Normal, Driver::Idm),
+    ];
+    let mut world = world_with(merge_road(1000.0), &cars);
+    let c = CostParams::default();
+    let length = world.vehicle_params().length;
+    let keeping = cost_now(&mut world, VehicleId(0));
+    let gap = 25.0 - length;
+    let expected = c.kappa_v_log * 25.0 + c.kappa_s_log / (gap * gap + c.epsilon);
+    assert!((keeping.safety - expected).abs() < 1e-9, "{keeping:?}");
+    assert!(keeping.efficiency == 25.0, "v-bar is the limit, 25");
+    world.change_lane(VehicleId(0), LaneId(0));
+    let changing = cost_now(&mut world, VehicleId(0));
+    let lateral_gap = (100.0f64 + 16.0).sqrt() - length;
+    assert!((changing.safety - c.kappa_s_lat / (lateral_gap * lateral_gap + c.epsilon)).abs() < 1e-9);
+    assert!(changing.efficiency == 25.0, "lane 0 is free: v-bar = 25");
+}
+
+#[test]
+fn a_broken_state_falls_back_to_braking_in_lane_and_says_so() {
+    let mut world =
+        world_with(merge_road(1000.0), &[("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader))]);
+    world.vehicle_mut(VehicleId(0)).state.yaw_rate = f64::NAN;
+    let step = plan_of(&mut world, VehicleId(0));
+    assert!(step.driver.diagnostics.fallback.as_deref().is_some_and(|m| m.contains("not finite")));
+    assert_eq!(step.driver.diagnostics.fallbacks, 1);
+    assert_eq!(step.command.accel, -AvParams::default().gt.fallback_brake);
+    assert_eq!(step.command.preview, world.road().lane_center(LaneId(1)));
+    assert_eq!(step.change_to, None);
+}
+
+#[test]
+fn gt_worlds_are_deterministic_and_plain_data() {
+    let cars = [
+        ("ec", 1, 100.0, 20.0, Style::Aggressive, gt(Game::Stackelberg, Role::Leader)),
+        ("ac", 0, 98.0, 15.0, Style::Normal, gt(Game::Stackelberg, Role::Follower)),
+    ];
+    let run = || {
+        let mut world = world_with(merge_road(300.0), &cars);
+        world.advance(6.0);
+        world
+    };
+    let (a, b) = (run(), run());
+    assert!(a == b, "two runs from the same start differ");
+    let clone = a.clone();
+    let (mut a, mut clone) = (a, clone);
+    a.advance(1.0);
+    clone.advance(1.0);
+    assert!(a == clone, "a clone stepped alike differs");
+    assert!(a.vehicles().iter().all(|v| v.status == Status::Driving));
+}
+
+#[test]
+fn defaults_are_the_documented_ones() {
+    // docs/parameters.md, "Game-theoretic AV": change both together.
+    let p = AvParams::default();
+    let c = p.decision.costs;
+    assert_eq!(
+        [c.kappa_v_log, c.kappa_s_log, c.kappa_v_lat, c.kappa_s_lat, c.kappa_ax, c.kappa_ay, c.epsilon],
+        [0.1, 1.5e4, 2.0, 3e4, 10.0, 10.0, 1e-3]
+    );
+    assert_eq!(c.lead_range, 0.0);
+    let (pr, g) = (p.decision.prediction, p.decision.game);
+    assert_eq!((pr.horizon, pr.samples, crate::dynamics::LANE_CHANGE_DURATION), (3.0, 6, 4.0));
+    assert_eq!(
+        [g.accel_min, g.accel_max, g.accel_step, g.speed_min, g.follower_tolerance],
+        [-4.0, 3.0, 0.25, 0.0, 0.0]
+    );
+    let f = p.field;
+    assert_eq!(
+        [f.obstacle_peak, f.rho_x, f.rho_y, f.shape, f.speed_skew, f.edge_peak, f.line_peak, f.safety_threshold],
+        [1.0, 6.0, 1.2, 1.0, 0.05, 0.2, 0.05, 0.3]
+    );
+    assert_eq!(f.range, 80.0);
+    let m = p.mpc;
+    assert_eq!((m.prediction_horizon, m.control_horizon), (25, 10));
+    assert_eq!(
+        [m.field_weight, m.lateral_weight, m.heading_weight, m.rate_weight, m.max_step, m.preview_margin, m.min_speed],
+        [20.0, 1.0, 30.0, 10.0, 0.15, 2.0, 2.0]
+    );
+    assert_eq!((p.gt.interaction_range, p.gt.lane_end_time, p.gt.fallback_brake), (60.0, 8.0, 3.0));
+}
+
+#[test]
+fn a_lane_change_into_a_lane_that_is_no_option_any_more_is_not_binding() {
+    // EC changing into lane 2, which ends 100 m ahead (within 8 s at 20 m/s): it decides
+    // afresh among the lanes it still has, and brakes for the stopped car ahead of it.
+    let stopped = Driver::Agent(AgentCommand::Direct(crate::dynamics::Command { accel: 0.0, preview: -4.0 }));
+    let cars = [
+        ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
+        ("stop", 1, 160.0, 0.0, Style::Normal, stopped),
+        ("beside", 0, 101.0, 20.0, Style::Normal, Driver::Idm),
+    ];
+    let mut world = world_with(merge_road(200.0), &cars);
+    world.change_lane(VehicleId(0), LaneId(2));
+    let decision = expert(&mut world, VehicleId(0), Game::Nash);
+    assert_eq!(decision.lane_change, LaneChange::Keep, "{decision:?}");
+    assert!(decision.accel < 0.0 && decision.exact, "{decision:?}");
+}
+
+#[test]
+fn the_expert_of_a_gt_car_is_its_own_planned_decision_with_its_own_tolerance() {
+    // Scenario A with EC a Stackelberg leader whose follower tolerance is not the default:
+    // at every period its expert decision equals the decision its driver plans, and at
+    // some period the default constants would have decided otherwise.
+    let mut driver = toml::Table::new();
+    driver.insert("kind".into(), "gt".into());
+    driver.insert("game".into(), "stackelberg".into());
+    driver.insert("follower_tolerance".into(), 2.0.into());
+    let overrides = vec![("vehicle.ec_0.driver".to_string(), toml::Value::Table(driver))];
+    let text = crate::scenario::BUILTIN[0].2;
+    let mut world = crate::scenario::Scenario::parse("merge.toml", text, &overrides).unwrap().build(0);
+    let ec = world.find("ec_0").unwrap();
+    assert_eq!(world.av_params(ec).decision.game.follower_tolerance, 2.0);
+    let mut differs = false;
+    for _ in 0..60 {
+        let own = expert(&mut world, ec, Game::Stackelberg);
+        let planned = plan_of(&mut world, ec).driver.decision;
+        assert_eq!(own, planned);
+        let defaults = AvParams::default();
+        differs |= expert_decision(world.scene(), ec, Game::Stackelberg, &defaults) != planned;
+        world.advance(world.params().control_dt);
+    }
+    assert!(differs, "the tolerance never mattered: the test would not see default constants");
+}

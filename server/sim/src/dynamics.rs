@@ -1,0 +1,624 @@
+//! The paper's integrated driver + bicycle model, eq. (1)–(8): its parameters (Tables I
+//! and II), the state derivative, fixed-step RK4 integration, and the linearisation and
+//! exact discretisation of eq. (22)–(24) that the MPC plans with.
+//!
+//! Vehicles move in the road's Frenet frame: `s` along the reference line, `d` to its
+//! left, `heading` relative to the tangent. On a straight road (curvature 0) this is
+//! exactly eq. (6) with X = s, Y = d; on an arc the kinematics gain the usual
+//! `1 / (1 - curvature * d)` factor, so the driver of eq. (1) previews the lane, not the
+//! global Y axis (docs/design.md, "Frenet frame").
+
+use nalgebra::{SMatrix, SVector};
+use serde::{Deserialize, Serialize};
+
+/// Number of states: [vx, vy, r, heading, s, d, steer, steer_rate] (eq. 8's x).
+pub const STATES: usize = 8;
+/// Number of inputs: [a_x, Y_p].
+pub const INPUTS: usize = 2;
+
+/// The vehicle of Table II plus the body size used for collisions.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct VehicleParams {
+    /// m, mass (kg). Table II: 1300.
+    pub mass: f64,
+    /// I_z, yaw moment of inertia (kg m^2). Table II: 2500.
+    pub yaw_inertia: f64,
+    /// l_f, CoG to front axle (m). Table II: 1.25.
+    pub front_axle: f64,
+    /// l_r, CoG to rear axle (m). Table II: 1.32.
+    pub rear_axle: f64,
+    /// k_f, front cornering stiffness (N/rad). Table II: 35000.
+    pub front_stiffness: f64,
+    /// k_r, rear cornering stiffness (N/rad). Table II: 38000.
+    pub rear_stiffness: f64,
+    /// Body length (m). 5.0, highway-env's `Vehicle.LENGTH`.
+    pub length: f64,
+    /// Body width (m). 2.0, highway-env's `Vehicle.WIDTH`.
+    pub width: f64,
+    /// Below this speed (m/s) the slip angles divide by it instead of v_x and the tyre
+    /// forces fade out linearly, so a standing car neither divides by zero nor creeps
+    /// sideways. 1.0, chosen here.
+    pub low_speed_guard: f64,
+}
+
+impl Default for VehicleParams {
+    fn default() -> Self {
+        VehicleParams {
+            mass: 1300.0,
+            yaw_inertia: 2500.0,
+            front_axle: 1.25,
+            rear_axle: 1.32,
+            front_stiffness: 35000.0,
+            rear_stiffness: 38000.0,
+            length: 5.0,
+            width: 2.0,
+            low_speed_guard: 1.0,
+        }
+    }
+}
+
+impl VehicleParams {
+    /// Wheelbase L = l_f + l_r (m).
+    pub fn wheelbase(&self) -> f64 {
+        self.front_axle + self.rear_axle
+    }
+
+    /// Understeer gradient K_us = m/L (l_r/k_f - l_f/k_r) (rad s^2/m) of the linear
+    /// bicycle model that eq. (2)–(5) reduce to for small angles.
+    pub fn understeer_gradient(&self) -> f64 {
+        self.mass / self.wheelbase() * (self.rear_axle / self.front_stiffness - self.front_axle / self.rear_stiffness)
+    }
+}
+
+/// A driving style of Table I (driver) and Table III (cost weights, see `av`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Style {
+    /// Fast reactions, long preview, high gain.
+    Aggressive,
+    /// Between the other two.
+    Normal,
+    /// Slow reactions, short preview, low gain.
+    Conservative,
+}
+
+impl Style {
+    /// All styles, in the paper's column order.
+    pub const ALL: [Style; 3] = [Style::Aggressive, Style::Normal, Style::Conservative];
+
+    /// The lowercase name used in scenario files and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Style::Aggressive => "aggressive",
+            Style::Normal => "normal",
+            Style::Conservative => "conservative",
+        }
+    }
+}
+
+/// The preview driver of eq. (1), Table I.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DriverParams {
+    /// T_d, the driver's physical delay (s). Table I.
+    pub delay: f64,
+    /// T_p, the preview time (s). Table I.
+    pub preview_time: f64,
+    /// G_s, the steering proportional gain. Table I.
+    pub steering_gain: f64,
+    /// a, the damping-rate factor of eq. (1). Table I.
+    pub damping: f64,
+    /// K_0 in K_s = K_0 * (v_ref / v_x), the steering ratio at `reference_speed`
+    /// (rad/m). 0.05, chosen here (the paper leaves K_s open; docs/parameters.md).
+    pub steering_ratio: f64,
+    /// v_ref of the K_s schedule (m/s). 20, chosen here.
+    pub reference_speed: f64,
+}
+
+impl DriverParams {
+    /// Table I's column for `style`, with the K_s schedule chosen here.
+    pub fn for_style(style: Style) -> DriverParams {
+        let (delay, preview_time, steering_gain, damping) = match style {
+            Style::Aggressive => (0.14, 1.02, 0.84, 0.24),
+            Style::Normal => (0.18, 0.94, 0.75, 0.23),
+            Style::Conservative => (0.24, 0.83, 0.62, 0.22),
+        };
+        DriverParams { delay, preview_time, steering_gain, damping, steering_ratio: 0.05, reference_speed: 20.0 }
+    }
+
+    /// K_s at speed `vx`: the closed loop's gain grows with vx^2, so K_s falls with vx
+    /// to keep every style settling without oscillation from 15 to 30 m/s.
+    pub fn steering_ratio_at(&self, vx: f64) -> f64 {
+        self.steering_ratio * self.reference_speed / vx
+    }
+}
+
+impl Default for DriverParams {
+    fn default() -> Self {
+        DriverParams::for_style(Style::Normal)
+    }
+}
+
+/// The 8 states of eq. (8), in the Frenet frame of the road.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct VehicleState {
+    /// v_x, longitudinal speed in the body frame (m/s).
+    pub vx: f64,
+    /// v_y, lateral speed in the body frame (m/s).
+    pub vy: f64,
+    /// r, yaw rate (rad/s).
+    pub yaw_rate: f64,
+    /// phi, heading relative to the lane tangent (rad).
+    pub heading: f64,
+    /// s, distance along the reference line (m) (X of eq. 6 on a straight road).
+    pub s: f64,
+    /// d, offset left of the reference line (m) (Y of eq. 6 on a straight road).
+    pub d: f64,
+    /// delta_f, front wheel steering angle (rad).
+    pub steer: f64,
+    /// d(delta_f)/dt (rad/s).
+    pub steer_rate: f64,
+}
+
+/// The inputs u of eq. (7): longitudinal acceleration and the preview point.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Command {
+    /// a_x (m/s^2), eq. (3).
+    pub accel: f64,
+    /// Y_p, the lateral offset of the preview point (m), eq. (1).
+    pub preview: f64,
+}
+
+type Vector8 = [f64; STATES];
+
+impl VehicleState {
+    /// A car driving straight along its lane at `speed`.
+    pub fn cruising(s: f64, d: f64, speed: f64) -> VehicleState {
+        VehicleState { vx: speed, s, d, ..VehicleState::default() }
+    }
+
+    /// As the state vector x of eq. (8).
+    pub fn to_array(&self) -> Vector8 {
+        [self.vx, self.vy, self.yaw_rate, self.heading, self.s, self.d, self.steer, self.steer_rate]
+    }
+
+    /// From the state vector x of eq. (8).
+    pub fn from_array(x: Vector8) -> VehicleState {
+        let [vx, vy, yaw_rate, heading, s, d, steer, steer_rate] = x;
+        VehicleState { vx, vy, yaw_rate, heading, s, d, steer, steer_rate }
+    }
+
+    /// Speed along the lane (m/s): the s-rate ignoring curvature.
+    pub fn lane_speed(&self) -> f64 {
+        let (sin, cos) = self.heading.sin_cos();
+        self.vx * cos - self.vy * sin
+    }
+
+    /// Lateral acceleration in the body frame (m/s^2): v_y' + v_x r.
+    pub fn lateral_accel(&self, vehicle: &VehicleParams) -> f64 {
+        let x = self.to_array();
+        let model = Model::new(vehicle, &DriverParams::default());
+        let (front, rear, _) = lateral_forces(&x, &model);
+        let dx = body_derivative(&x, (front, rear), self.steer.cos(), 0.0, &model);
+        dx[1] + self.vx * self.yaw_rate
+    }
+}
+
+/// sin and cos of the heading and cos of the steering angle: the only transcendental
+/// values f needs. RK4's stages sit within a few milliradians of the step's start, so
+/// `near` rotates the start's values by the small difference (series to 1e-18) instead
+/// of calling libm three times per stage, which was half of the world step's time.
+#[derive(Debug, Clone, Copy)]
+struct Angles {
+    heading: (f64, f64),
+    steer: (f64, f64),
+}
+
+impl Angles {
+    fn of(heading: f64, steer: f64) -> Angles {
+        Angles { heading: heading.sin_cos(), steer: steer.sin_cos() }
+    }
+
+    fn near(&self, heading: f64, base_heading: f64, steer: f64, base_steer: f64) -> Angles {
+        const SMALL: f64 = 0.01;
+        let (dh, ds) = (heading - base_heading, steer - base_steer);
+        if dh.abs() > SMALL || ds.abs() > SMALL {
+            return Angles::of(heading, steer);
+        }
+        Angles { heading: rotate(self.heading, dh), steer: rotate(self.steer, ds) }
+    }
+}
+
+/// (sin, cos) of a + delta from (sin a, cos a), for |delta| <= 0.01.
+#[inline]
+fn rotate((sin, cos): (f64, f64), delta: f64) -> (f64, f64) {
+    let d2 = delta * delta;
+    // Multiplying by folded constants: a division here would cost more than libm saves.
+    let sin_delta = delta * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0))));
+    let cos_delta = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
+    (sin * cos_delta + cos * sin_delta, cos * cos_delta - sin * sin_delta)
+}
+
+/// The constants of f for one vehicle and driver, with their reciprocals taken once:
+/// f is evaluated four times per RK4 step, and divisions were most of its cost.
+#[derive(Debug, Clone, Copy)]
+struct Model {
+    front_axle: f64,
+    rear_axle: f64,
+    front_stiffness: f64,
+    rear_stiffness: f64,
+    inv_mass: f64,
+    inv_inertia: f64,
+    guard: f64,
+    inv_guard: f64,
+    preview_time: f64,
+    /// 1 / (a T_d) and 1 / (a T_d^2) of eq. (1).
+    rate_gain: f64,
+    angle_gain: f64,
+    /// K_0 v_ref G_s / (a T_d^2): eq. (1)'s preview gain times v_x, as K_s = K_0 v_ref / v_x.
+    preview_gain: f64,
+}
+
+impl Model {
+    fn new(vehicle: &VehicleParams, driver: &DriverParams) -> Model {
+        let DriverParams { delay, preview_time, steering_gain, damping, steering_ratio, reference_speed } = *driver;
+        Model {
+            front_axle: vehicle.front_axle,
+            rear_axle: vehicle.rear_axle,
+            front_stiffness: vehicle.front_stiffness,
+            rear_stiffness: vehicle.rear_stiffness,
+            inv_mass: 1.0 / vehicle.mass,
+            inv_inertia: 1.0 / vehicle.yaw_inertia,
+            guard: vehicle.low_speed_guard,
+            inv_guard: 1.0 / vehicle.low_speed_guard,
+            preview_time,
+            rate_gain: 1.0 / (damping * delay),
+            angle_gain: 1.0 / (damping * delay * delay),
+            preview_gain: steering_ratio * reference_speed * steering_gain / (damping * delay * delay),
+        }
+    }
+}
+
+/// Tyre forces of eq. (4)–(5), faded out below the low-speed guard; also 1 / v_x guarded.
+#[inline]
+fn lateral_forces(x: &Vector8, model: &Model) -> (f64, f64, f64) {
+    let [vx, vy, r, _, _, _, steer, _] = *x;
+    let inv_speed = 1.0 / vx.max(model.guard);
+    let fade = (vx * model.inv_guard).clamp(0.0, 1.0);
+    let front_slip = -steer + (vy + model.front_axle * r) * inv_speed; // eq. (5)
+    let rear_slip = (vy - model.rear_axle * r) * inv_speed; // eq. (5)
+    (-model.front_stiffness * front_slip * fade, -model.rear_stiffness * rear_slip * fade, inv_speed) // eq. (4)
+}
+
+/// Rows 1–3 of eq. (8) (eq. 2 with eq. 3): the body's speeds. A car does not reverse.
+#[inline]
+fn body_derivative(x: &Vector8, forces: (f64, f64), cos_steer: f64, accel: f64, model: &Model) -> [f64; 3] {
+    let [vx, vy, r, ..] = *x;
+    let (front, rear) = forces;
+    let mut vx_dot = vy * r + accel;
+    if vx <= 0.0 && vx_dot < 0.0 {
+        vx_dot = 0.0;
+    }
+    [
+        vx_dot,
+        -vx * r + (front * cos_steer + rear) * model.inv_mass,
+        (model.front_axle * front * cos_steer - model.rear_axle * rear) * model.inv_inertia,
+    ]
+}
+
+/// Rows 4–6 of eq. (8) (eq. 6), written in the Frenet frame of a lane with `curvature`.
+#[inline]
+fn pose_derivative(x: &Vector8, (sin, cos): (f64, f64), curvature: f64) -> [f64; 3] {
+    let [vx, vy, r, _, _, d, _, _] = *x;
+    let along = vx * cos - vy * sin;
+    let s_dot = if curvature == 0.0 { along } else { along / (1.0 - curvature * d) };
+    [r - curvature * s_dot, s_dot, vx * sin + vy * cos]
+}
+
+/// Row 8 of eq. (8), taken from eq. (1) (docs/design.md, "Equation 1 against equation 8").
+#[inline]
+fn driver_derivative(x: &Vector8, preview: f64, inv_speed: f64, model: &Model) -> f64 {
+    let [vx, _, _, heading, _, d, steer, steer_rate] = *x;
+    let predicted = d + model.preview_time * vx * heading;
+    // eq. (1), with K_s = K_0 v_ref / v_x folded into preview_gain * inv_speed
+    -steer_rate * model.rate_gain - steer * model.angle_gain + model.preview_gain * inv_speed * (preview - predicted)
+}
+
+/// f(x, u) of eq. (7)–(8) on a lane of the given curvature.
+#[inline]
+pub fn derivative(
+    x: &Vector8,
+    command: Command,
+    curvature: f64,
+    vehicle: &VehicleParams,
+    driver: &DriverParams,
+) -> Vector8 {
+    derivative_at(x, Angles::of(x[3], x[6]), command, curvature, &Model::new(vehicle, driver))
+}
+
+#[inline]
+fn derivative_at(x: &Vector8, angles: Angles, command: Command, curvature: f64, model: &Model) -> Vector8 {
+    let (front, rear, inv_speed) = lateral_forces(x, model);
+    let [vx_dot, vy_dot, r_dot] = body_derivative(x, (front, rear), angles.steer.1, command.accel, model);
+    let [heading_dot, s_dot, d_dot] = pose_derivative(x, angles.heading, curvature);
+    [vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, x[7], driver_derivative(x, command.preview, inv_speed, model)]
+}
+
+/// The bicycle alone (eq. 2–6) with the steering angle held where it is.
+pub fn fixed_steer_derivative(x: &Vector8, accel: f64, curvature: f64, vehicle: &VehicleParams) -> Vector8 {
+    let angles = Angles::of(x[3], x[6]);
+    let model = Model::new(vehicle, &DriverParams::default());
+    let (front, rear, _) = lateral_forces(x, &model);
+    let [vx_dot, vy_dot, r_dot] = body_derivative(x, (front, rear), angles.steer.1, accel, &model);
+    let [heading_dot, s_dot, d_dot] = pose_derivative(x, angles.heading, curvature);
+    [vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, 0.0, 0.0]
+}
+
+/// One classical Runge–Kutta step of `dt` for any right-hand side.
+#[inline]
+pub fn rk4(x: &Vector8, dt: f64, f: impl Fn(&Vector8) -> Vector8) -> Vector8 {
+    let offset = |k: &Vector8, h: f64| std::array::from_fn(|i| x[i] + h * k[i]);
+    let k1 = f(x);
+    let (half, sixth) = (dt * 0.5, dt * (1.0 / 6.0));
+    let k2 = f(&offset(&k1, half));
+    let k3 = f(&offset(&k2, half));
+    let k4 = f(&offset(&k3, dt));
+    std::array::from_fn(|i| x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+}
+
+/// Advances a vehicle by one physics step with the driver model closing the loop.
+#[inline]
+pub fn step(
+    state: &VehicleState,
+    command: Command,
+    curvature: f64,
+    dt: f64,
+    vehicle: &VehicleParams,
+    driver: &DriverParams,
+) -> VehicleState {
+    Stepper::new(vehicle, driver, dt).step(state, command, curvature)
+}
+
+/// `step` with the constants of f prepared once, for a world that steps many vehicles
+/// of the same kind every tick.
+#[derive(Debug, Clone, Copy)]
+pub struct Stepper {
+    model: Model,
+    dt: f64,
+}
+
+impl Stepper {
+    /// Prepares the step of a `vehicle` with `driver` over `dt`.
+    pub fn new(vehicle: &VehicleParams, driver: &DriverParams, dt: f64) -> Stepper {
+        Stepper { model: Model::new(vehicle, driver), dt }
+    }
+
+    /// One RK4 step of eq. (7)-(8).
+    #[inline]
+    pub fn step(&self, state: &VehicleState, command: Command, curvature: f64) -> VehicleState {
+        let x0 = state.to_array();
+        let start = Angles::of(x0[3], x0[6]);
+        let x = rk4(&x0, self.dt, |x| {
+            let angles = start.near(x[3], x0[3], x[6], x0[6]);
+            derivative_at(x, angles, command, curvature, &self.model)
+        });
+        let mut next = VehicleState::from_array(x);
+        next.vx = next.vx.max(0.0);
+        next
+    }
+}
+
+/// The continuous-time linearisation of eq. (22)–(23) around (x_t, u_t), plus the
+/// affine term `f(x_t, u_t) - A x_t - B u_t` so the model stays exact at the point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Linearisation {
+    /// A_t = df/dx.
+    pub a: SMatrix<f64, STATES, STATES>,
+    /// B_t = df/du, columns [a_x, Y_p].
+    pub b: SMatrix<f64, STATES, INPUTS>,
+    /// f(x_t, u_t) - A_t x_t - B_t u_t.
+    pub offset: SVector<f64, STATES>,
+}
+
+/// eq. (23): the analytic Jacobians of `derivative` (above the low-speed guard).
+pub fn linearise(
+    state: &VehicleState,
+    command: Command,
+    curvature: f64,
+    vehicle: &VehicleParams,
+    driver: &DriverParams,
+) -> Linearisation {
+    let x = state.to_array();
+    let [vx, vy, r, heading, _, d, steer, _] = x;
+    let VehicleParams {
+        mass, yaw_inertia, front_axle: lf, rear_axle: lr, front_stiffness: kf, rear_stiffness: kr, ..
+    } = *vehicle;
+    let mut a = SMatrix::<f64, STATES, STATES>::zeros();
+    let mut b = SMatrix::<f64, STATES, INPUTS>::zeros();
+    let (front, ..) = lateral_forces(&x, &Model::new(vehicle, driver));
+    let (sin_steer, cos_steer) = steer.sin_cos();
+
+    // Tyre forces' partials over [vx, vy, r, steer].
+    let front_d = [kf * (vy + lf * r) / (vx * vx), -kf / vx, -kf * lf / vx, kf];
+    let rear_d = [kr * (vy - lr * r) / (vx * vx), -kr / vx, kr * lr / vx, 0.0];
+    let columns = [0, 1, 2, 6];
+
+    a[(0, 1)] = r;
+    a[(0, 2)] = vy;
+    b[(0, 0)] = 1.0;
+    for (k, &col) in columns.iter().enumerate() {
+        a[(1, col)] = (front_d[k] * cos_steer + rear_d[k]) / mass;
+        a[(2, col)] = (lf * front_d[k] * cos_steer - lr * rear_d[k]) / yaw_inertia;
+    }
+    a[(1, 0)] -= r;
+    a[(1, 2)] -= vx;
+    a[(1, 6)] -= front * sin_steer / mass;
+    a[(2, 6)] -= lf * front * sin_steer / yaw_inertia;
+
+    let (sin, cos) = heading.sin_cos();
+    let stretch = 1.0 - curvature * d;
+    let s_dot = (vx * cos - vy * sin) / stretch;
+    let s_dot_d = [cos / stretch, -sin / stretch, (-vx * sin - vy * cos) / stretch, s_dot * curvature / stretch];
+    for (k, &col) in [0, 1, 3, 5].iter().enumerate() {
+        a[(4, col)] = s_dot_d[k];
+        a[(3, col)] = -curvature * s_dot_d[k];
+    }
+    a[(3, 2)] = 1.0;
+    a[(5, 0)] = sin;
+    a[(5, 1)] = cos;
+    a[(5, 3)] = vx * cos - vy * sin;
+    a[(6, 7)] = 1.0;
+
+    let DriverParams { delay, preview_time, steering_gain, damping, .. } = *driver;
+    let gain = steering_gain / (damping * delay * delay);
+    let ratio = driver.steering_ratio_at(vx);
+    let ratio_dvx = -ratio / vx;
+    let error = command.preview - (d + preview_time * vx * heading);
+    a[(7, 7)] = -1.0 / (damping * delay);
+    a[(7, 6)] = -1.0 / (damping * delay * delay);
+    a[(7, 5)] = -ratio * gain;
+    a[(7, 3)] = -ratio * gain * preview_time * vx;
+    a[(7, 0)] = gain * (ratio_dvx * error - ratio * preview_time * heading);
+    b[(7, 1)] = ratio * gain;
+
+    let f = SVector::from(derivative(&x, command, curvature, vehicle, driver));
+    let offset = f - a * SVector::from(x) - b * SVector::from([command.accel, command.preview]);
+    Linearisation { a, b, offset }
+}
+
+/// The discrete model of eq. (24): x(k+1) = A_k x(k) + B_k u(k) + c_k.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Discretisation {
+    /// A_k = e^(A_t dT).
+    pub a: SMatrix<f64, STATES, STATES>,
+    /// B_k = integral_0^dT e^(A_t tau) B_t dtau.
+    pub b: SMatrix<f64, STATES, INPUTS>,
+    /// The same integral applied to the affine term.
+    pub offset: SVector<f64, STATES>,
+}
+
+impl Linearisation {
+    /// eq. (24), exactly: the exponential of the augmented matrix [[A, B, c], [0, 0, 0]] dT
+    /// holds A_k, B_k and c_k in its top rows (zero-order hold on u).
+    pub fn discretise(&self, dt: f64) -> Discretisation {
+        const N: usize = STATES + INPUTS + 1;
+        let mut augmented = SMatrix::<f64, N, N>::zeros();
+        augmented.fixed_view_mut::<STATES, STATES>(0, 0).copy_from(&(self.a * dt));
+        augmented.fixed_view_mut::<STATES, INPUTS>(0, STATES).copy_from(&(self.b * dt));
+        augmented.fixed_view_mut::<STATES, 1>(0, STATES + INPUTS).copy_from(&(self.offset * dt));
+        let exp = augmented.exp();
+        Discretisation {
+            a: exp.fixed_view::<STATES, STATES>(0, 0).into_owned(),
+            b: exp.fixed_view::<STATES, INPUTS>(0, STATES).into_owned(),
+            offset: exp.fixed_view::<STATES, 1>(0, STATES + INPUTS).into_owned(),
+        }
+    }
+}
+
+/// Duration of one lane change's lateral path (s), for every driver: IDM/MOBIL, learners'
+/// meta actions, the game-theoretic AV's predictions and a scenario's start onto its lane.
+/// 4, chosen here: a 4 s quintic settles every style within the bounds of
+/// docs/parameters.md at 15-30 m/s.
+pub const LANE_CHANGE_DURATION: f64 = 4.0;
+
+/// A smooth lateral path from one offset to another (a quintic in time with zero
+/// lateral speed and acceleration at both ends): the "consecutive preview points" of
+/// §III-B. Drivers preview it `T_p` ahead rather than aiming at the final lane, which
+/// with a constant K_s overshoots by metres (docs/design.md, "Preview path").
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LateralPath {
+    /// Offset at the start (m).
+    pub from: f64,
+    /// Offset at the end (m).
+    pub to: f64,
+    /// Simulated time the path starts (s).
+    pub start: f64,
+    /// Duration (s).
+    pub duration: f64,
+}
+
+impl LateralPath {
+    /// A path that stays at `d`.
+    pub fn hold(d: f64) -> LateralPath {
+        LateralPath { from: d, to: d, start: 0.0, duration: 1.0 }
+    }
+
+    /// A lane change from offset `from` to `to` starting at `start`.
+    pub fn lane_change(from: f64, to: f64, start: f64) -> LateralPath {
+        LateralPath { from, to, start, duration: LANE_CHANGE_DURATION }
+    }
+
+    /// The path's offset at time `t` (m).
+    pub fn offset_at(&self, t: f64) -> f64 {
+        let u = ((t - self.start) / self.duration).clamp(0.0, 1.0);
+        let blend = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
+        self.from + (self.to - self.from) * blend
+    }
+
+    /// The preview point Y_p for a driver at time `t` with preview time `T_p`.
+    pub fn preview(&self, t: f64, preview_time: f64) -> f64 {
+        self.offset_at(t + preview_time)
+    }
+
+    /// Whether the path has reached its end at time `t`.
+    pub fn finished(&self, t: f64) -> bool {
+        t >= self.start + self.duration
+    }
+}
+
+/// How one lane change settles: the figures docs/parameters.md reports per style.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaneChangeResponse {
+    /// Time from the start after which the car stays within `band` of the new lane (s).
+    pub settling_time: f64,
+    /// Largest excursion beyond the new lane's centre (m).
+    pub overshoot: f64,
+}
+
+/// Simulates a `width` lane change at constant `speed` along a `path_duration` quintic
+/// path for `horizon` seconds (physics step `dt`) and measures how it settles.
+pub fn lane_change_response(
+    style: Style,
+    speed: f64,
+    width: f64,
+    path_duration: f64,
+    band: f64,
+    horizon: f64,
+    dt: f64,
+) -> LaneChangeResponse {
+    let vehicle = VehicleParams::default();
+    let driver = DriverParams::for_style(style);
+    let path = LateralPath { from: 0.0, to: width, start: 0.0, duration: path_duration };
+    let mut state = VehicleState::cruising(0.0, 0.0, speed);
+    let (mut settling_time, mut overshoot) = (0.0, 0.0f64);
+    let steps = (horizon / dt).round() as usize;
+    for k in 0..steps {
+        let t = k as f64 * dt;
+        let command = Command { accel: 0.0, preview: path.preview(t, driver.preview_time) };
+        state = step(&state, command, 0.0, dt, &vehicle, &driver);
+        let beyond = (state.d - width) * width.signum();
+        overshoot = overshoot.max(beyond);
+        if (state.d - width).abs() > band {
+            settling_time = t + dt;
+        }
+    }
+    LaneChangeResponse { settling_time, overshoot }
+}
+
+#[cfg(test)]
+mod tests;
+
+#[cfg(test)]
+mod trig_tests {
+    #[test]
+    fn rotated_angles_match_libm() {
+        for k in -100..=100 {
+            let base = k as f64 * 0.013;
+            for j in -10..=10 {
+                let delta = j as f64 * 1e-3;
+                let (sin, cos) = super::rotate(base.sin_cos(), delta);
+                let exact = (base + delta).sin_cos();
+                assert!((sin - exact.0).abs() < 1e-15 && (cos - exact.1).abs() < 1e-15, "{base} + {delta}");
+            }
+        }
+    }
+}

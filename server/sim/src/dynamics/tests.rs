@@ -1,0 +1,156 @@
+use super::*;
+
+const DT: f64 = 0.01;
+
+#[test]
+fn straight_driving_stays_on_the_lane_centre() {
+    let vehicle = VehicleParams::default();
+    for style in Style::ALL {
+        let driver = DriverParams::for_style(style);
+        let mut state = VehicleState::cruising(0.0, -4.0, 25.0);
+        for _ in 0..3000 {
+            state = step(&state, Command { accel: 0.0, preview: -4.0 }, 0.0, DT, &vehicle, &driver);
+        }
+        assert!((state.d + 4.0).abs() < 1e-9, "{style:?} drifted to d = {}", state.d);
+        assert!((state.vx - 25.0).abs() < 1e-9 && (state.s - 750.0).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn fixed_steer_yaw_rate_settles_to_the_linear_bicycle_value() {
+    let vehicle = VehicleParams::default();
+    let steer = 0.01;
+    for speed in [10.0, 20.0, 30.0] {
+        let mut x = VehicleState { steer, ..VehicleState::cruising(0.0, 0.0, speed) }.to_array();
+        for _ in 0..1000 {
+            x = rk4(&x, DT, |x| {
+                let mut dx = fixed_steer_derivative(x, 0.0, 0.0, &vehicle);
+                dx[0] = 0.0; // hold v_x: the steady state is defined at constant speed
+                dx
+            });
+        }
+        let expected = speed * steer / (vehicle.wheelbase() + vehicle.understeer_gradient() * speed * speed);
+        let relative = (x[2] - expected).abs() / expected;
+        assert!(relative < 2e-3, "v {speed}: r = {}, linear bicycle {expected}", x[2]);
+    }
+}
+
+#[test]
+fn lane_change_settles_for_every_style_and_speed() {
+    for style in Style::ALL {
+        for speed in [15.0, 20.0, 30.0] {
+            for width in [4.0, -4.0] {
+                let response = lane_change_response(style, speed, width, 4.0, 0.2, 15.0, DT);
+                assert!(
+                    response.settling_time <= 8.0,
+                    "{style:?} at {speed} m/s: settles at {:.2} s",
+                    response.settling_time
+                );
+                assert!(response.overshoot < 0.5, "{style:?} at {speed} m/s: overshoot {:.3} m", response.overshoot);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_constant_preview_step_overshoots_which_is_why_paths_are_previewed() {
+    // The failure docs/design.md warns of ("Preview path"): aiming straight at the new lane.
+    let response = lane_change_response(Style::Conservative, 30.0, 4.0, 1e-3, 0.2, 15.0, DT);
+    assert!(response.overshoot > 0.5, "overshoot {}", response.overshoot);
+}
+
+fn sample_state() -> VehicleState {
+    VehicleState { vx: 22.0, vy: 0.3, yaw_rate: 0.05, heading: 0.04, s: 30.0, d: -1.5, steer: 0.02, steer_rate: -0.01 }
+}
+
+#[test]
+fn linearisation_matches_finite_differences() {
+    let vehicle = VehicleParams::default();
+    let driver = DriverParams::for_style(Style::Aggressive);
+    let command = Command { accel: 0.7, preview: -0.8 };
+    for curvature in [0.0, 1.0 / 400.0] {
+        let state = sample_state();
+        let lin = linearise(&state, command, curvature, &vehicle, &driver);
+        let x0 = state.to_array();
+        for j in 0..STATES {
+            let h = 1e-6 * x0[j].abs().max(1.0);
+            let (mut plus, mut minus) = (x0, x0);
+            plus[j] += h;
+            minus[j] -= h;
+            let fp = derivative(&plus, command, curvature, &vehicle, &driver);
+            let fm = derivative(&minus, command, curvature, &vehicle, &driver);
+            for i in 0..STATES {
+                let numeric = (fp[i] - fm[i]) / (2.0 * h);
+                let tol = 1e-5 * numeric.abs().max(1.0);
+                assert!(
+                    (lin.a[(i, j)] - numeric).abs() < tol,
+                    "A[{i},{j}] = {} vs {numeric} (k {curvature})",
+                    lin.a[(i, j)]
+                );
+            }
+        }
+        for j in 0..INPUTS {
+            let h = 1e-6;
+            let bump = |sign: f64| {
+                let mut c = command;
+                if j == 0 {
+                    c.accel += sign * h
+                } else {
+                    c.preview += sign * h
+                }
+                derivative(&x0, c, curvature, &vehicle, &driver)
+            };
+            let (fp, fm) = (bump(1.0), bump(-1.0));
+            for i in 0..STATES {
+                let numeric = (fp[i] - fm[i]) / (2.0 * h);
+                assert!((lin.b[(i, j)] - numeric).abs() < 1e-5 * numeric.abs().max(1.0), "B[{i},{j}]");
+            }
+        }
+    }
+}
+
+#[test]
+fn discretisation_matches_rk4_over_one_step() {
+    let vehicle = VehicleParams::default();
+    let driver = DriverParams::for_style(Style::Normal);
+    let command = Command { accel: 0.5, preview: -1.0 };
+    let state = sample_state();
+    let lin = linearise(&state, command, 0.0, &vehicle, &driver);
+    let dt = DT;
+    let disc = lin.discretise(dt);
+    let u = SVector::from([command.accel, command.preview]);
+
+    // The linear model itself, integrated finely with RK4, lands where (A_k, B_k, c_k) say.
+    let linear_rhs = |x: &Vector8| -> Vector8 { (lin.a * SVector::from(*x) + lin.b * u + lin.offset).into() };
+    let mut x = state.to_array();
+    for _ in 0..100 {
+        x = rk4(&x, dt / 100.0, linear_rhs);
+    }
+    let exact = disc.a * SVector::from(state.to_array()) + disc.b * u + disc.offset;
+    for i in 0..STATES {
+        assert!((exact[i] - x[i]).abs() < 1e-9 * x[i].abs().max(1.0), "state {i}: {} vs {}", exact[i], x[i]);
+    }
+
+    // And at the linearisation point it tracks the nonlinear model over one step.
+    let nonlinear = rk4(&state.to_array(), dt, |x| derivative(x, command, 0.0, &vehicle, &driver));
+    for i in 0..STATES {
+        assert!(
+            (exact[i] - nonlinear[i]).abs() < 1e-5 * nonlinear[i].abs().max(1.0),
+            "state {i}: {} vs nonlinear {}",
+            exact[i],
+            nonlinear[i]
+        );
+    }
+}
+
+#[test]
+fn a_standing_car_stays_put_and_never_reverses() {
+    let vehicle = VehicleParams::default();
+    let driver = DriverParams::default();
+    let mut state = VehicleState { steer: 0.1, ..VehicleState::cruising(0.0, 0.0, 0.0) };
+    for _ in 0..500 {
+        state = step(&state, Command { accel: -3.0, preview: 2.0 }, 0.0, DT, &vehicle, &driver);
+    }
+    assert_eq!(state.vx, 0.0);
+    assert!(state.s.abs() < 1e-9 && state.d.abs() < 1e-9, "moved to ({}, {})", state.s, state.d);
+}

@@ -1,0 +1,351 @@
+//! Lane geometry: a reference line made of straight and circular-arc sections, lanes
+//! laid side by side along it, lanes that end, and the Frenet (s, d) <-> global (X, Y)
+//! conversion every other module reads positions through.
+//!
+//! Conventions, as in the paper's Scenario B: lane 0 is the leftmost lane and lane
+//! indices grow to the right, so a lane change with sigma = -1 goes to `lane - 1`. The
+//! lateral offset `d` is measured to the left of the reference line, which is the centre
+//! line of lane 0; lane `i` has its centre at `d = -i * lane_width`.
+
+use serde::{Deserialize, Serialize};
+
+/// Index of a lane, 0 = leftmost.
+#[repr(transparent)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct LaneId(pub u32);
+
+/// A lane change relative to the lane a car is in: the paper's sigma of eq. (10)
+/// (-1 left, 0 keep, +1 right) as a type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LaneChange {
+    /// To the lane on the left (sigma = -1).
+    Left,
+    /// Stay in the lane (sigma = 0).
+    #[default]
+    Keep,
+    /// To the lane on the right (sigma = +1).
+    Right,
+}
+
+impl LaneChange {
+    /// The paper's sigma: -1, 0 or 1.
+    pub fn sigma(self) -> i8 {
+        match self {
+            LaneChange::Left => -1,
+            LaneChange::Keep => 0,
+            LaneChange::Right => 1,
+        }
+    }
+
+    /// "left", "keep" or "right", as reports print it.
+    pub fn name(self) -> &'static str {
+        match self {
+            LaneChange::Left => "left",
+            LaneChange::Keep => "keep",
+            LaneChange::Right => "right",
+        }
+    }
+
+    /// The change of the given sign (negative: left).
+    pub fn from_sigma(sigma: i8) -> LaneChange {
+        match sigma.signum() {
+            -1 => LaneChange::Left,
+            0 => LaneChange::Keep,
+            _ => LaneChange::Right,
+        }
+    }
+
+    /// The change that leads from lane `from` to lane `to` (its direction only).
+    pub fn between(from: LaneId, to: LaneId) -> LaneChange {
+        LaneChange::from_sigma((i64::from(to.0) - i64::from(from.0)).signum() as i8)
+    }
+}
+
+/// One piece of the reference line.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Section {
+    /// A straight piece of the given length (m).
+    Straight {
+        /// Length (m).
+        length: f64,
+    },
+    /// A circular arc of the given length (m) and signed curvature (1/m, positive bends left).
+    Arc {
+        /// Length along the arc (m).
+        length: f64,
+        /// Signed curvature (1/m), positive bends left.
+        curvature: f64,
+    },
+}
+
+impl Section {
+    /// Length along the reference line (m).
+    pub fn length(&self) -> f64 {
+        match *self {
+            Section::Straight { length } | Section::Arc { length, .. } => length,
+        }
+    }
+
+    /// Signed curvature (1/m).
+    pub fn curvature(&self) -> f64 {
+        match *self {
+            Section::Straight { .. } => 0.0,
+            Section::Arc { curvature, .. } => curvature,
+        }
+    }
+}
+
+/// A pose in the global frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// Global X (m).
+    pub x: f64,
+    /// Global Y (m), positive to the left of the road's initial heading.
+    pub y: f64,
+    /// Heading (rad), counter-clockwise from the X axis.
+    pub heading: f64,
+}
+
+/// Where a section starts, precomputed so conversions need no walk along the road.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+struct SectionStart {
+    s: f64,
+    pose: Pose,
+}
+
+/// A multi-lane road.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Road {
+    sections: Vec<Section>,
+    starts: Vec<SectionStart>,
+    lane_width: f64,
+    /// Per lane: where the lane ends (m along the reference line), or the road's length.
+    lane_ends: Vec<f64>,
+    /// Per lane: the speed limit (m/s), `v_max` of eq. (14).
+    speed_limits: Vec<f64>,
+    length: f64,
+}
+
+impl Road {
+    /// Builds a road from its reference line, starting at `origin`. Lanes run the whole
+    /// length unless `lane_ends` says otherwise. Inputs are assumed validated (see
+    /// `scenario`); this panics only on an empty section list or zero lanes.
+    pub fn new(
+        origin: Pose,
+        sections: Vec<Section>,
+        lane_width: f64,
+        speed_limits: Vec<f64>,
+        lane_ends: &[(LaneId, f64)],
+    ) -> Road {
+        assert!(!sections.is_empty() && !speed_limits.is_empty());
+        let mut starts = Vec::with_capacity(sections.len());
+        let mut s = 0.0;
+        let mut pose = origin;
+        for section in &sections {
+            starts.push(SectionStart { s, pose });
+            pose = advance(pose, section.curvature(), section.length());
+            s += section.length();
+        }
+        let mut ends = vec![s; speed_limits.len()];
+        for &(lane, end) in lane_ends {
+            ends[lane.0 as usize] = end.min(s);
+        }
+        Road { sections, starts, lane_width, lane_ends: ends, speed_limits, length: s }
+    }
+
+    /// A straight road, the common case in tests and benchmarks.
+    pub fn straight(length: f64, lanes: usize, lane_width: f64, speed_limit: f64) -> Road {
+        let origin = Pose { x: 0.0, y: 0.0, heading: 0.0 };
+        Road::new(origin, vec![Section::Straight { length }], lane_width, vec![speed_limit; lanes], &[])
+    }
+
+    /// Number of lanes.
+    pub fn lane_count(&self) -> usize {
+        self.speed_limits.len()
+    }
+
+    /// Lane width (m).
+    pub fn lane_width(&self) -> f64 {
+        self.lane_width
+    }
+
+    /// Length of the reference line (m).
+    pub fn length(&self) -> f64 {
+        self.length
+    }
+
+    /// The sections of the reference line.
+    pub fn sections(&self) -> &[Section] {
+        &self.sections
+    }
+
+    /// Whether `lane` exists on this road.
+    pub fn has_lane(&self, lane: i64) -> bool {
+        lane >= 0 && (lane as usize) < self.lane_count()
+    }
+
+    /// Lateral offset of the lane's centre line (m).
+    pub fn lane_center(&self, lane: LaneId) -> f64 {
+        -(lane.0 as f64) * self.lane_width
+    }
+
+    /// Where `lane` ends (m along the reference line).
+    pub fn lane_end(&self, lane: LaneId) -> f64 {
+        self.lane_ends[lane.0 as usize]
+    }
+
+    /// Speed limit of `lane` (m/s).
+    pub fn speed_limit(&self, lane: LaneId) -> f64 {
+        self.speed_limits[lane.0 as usize]
+    }
+
+    /// The lane whose strip contains offset `d`, if any (lanes that have ended excluded).
+    pub fn lane_at(&self, s: f64, d: f64) -> Option<LaneId> {
+        // Truncation is floor here because negatives are refused first; f64::floor is a
+        // libm call on baseline x86-64, and this runs for every vehicle every step.
+        let position = -d / self.lane_width + 0.5;
+        if !(0.0..self.lane_count() as f64).contains(&position) {
+            return None;
+        }
+        let lane = LaneId(position as u32);
+        (s <= self.lane_end(lane)).then_some(lane)
+    }
+
+    /// The lane nearest to offset `d`, clamped to the road.
+    pub fn nearest_lane(&self, d: f64) -> LaneId {
+        let index = (-d / self.lane_width).round().clamp(0.0, (self.lane_count() - 1) as f64);
+        LaneId(index as u32)
+    }
+
+    /// Whether (s, d) lies on the paved road: within the outer edges and on a lane that has
+    /// not ended.
+    pub fn contains(&self, s: f64, d: f64) -> bool {
+        (0.0..=self.length).contains(&s) && self.lane_at(s, d).is_some()
+    }
+
+    fn section_index(&self, s: f64) -> usize {
+        self.starts.partition_point(|start| start.s <= s).saturating_sub(1)
+    }
+
+    /// Curvature of the reference line at `s` (1/m).
+    pub fn curvature(&self, s: f64) -> f64 {
+        self.sections[self.section_index(s)].curvature()
+    }
+
+    /// Frenet (s, d) and heading relative to the tangent -> global pose. Past either end
+    /// the road is extended along its end tangents.
+    pub fn to_global(&self, s: f64, d: f64, relative_heading: f64) -> Pose {
+        let index = self.section_index(s);
+        let (section, start) = (self.sections[index], self.starts[index]);
+        let along = s - start.s;
+        let reference = if along < 0.0 {
+            advance(start.pose, 0.0, along)
+        } else if along > section.length() {
+            advance(advance(start.pose, section.curvature(), section.length()), 0.0, along - section.length())
+        } else {
+            advance(start.pose, section.curvature(), along)
+        };
+        let (sin, cos) = reference.heading.sin_cos();
+        Pose { x: reference.x - d * sin, y: reference.y + d * cos, heading: reference.heading + relative_heading }
+    }
+
+    /// Global (X, Y) -> Frenet (s, d): the nearest point of the reference line.
+    pub fn to_frenet(&self, x: f64, y: f64) -> (f64, f64) {
+        let mut best = (f64::INFINITY, 0.0, 0.0);
+        for (section, start) in self.sections.iter().zip(&self.starts) {
+            let (along, d) = project(start.pose, section.curvature(), x, y);
+            let clamped = along.clamp(0.0, section.length());
+            let foot = advance(start.pose, section.curvature(), clamped);
+            let distance = (foot.x - x).hypot(foot.y - y);
+            if distance < best.0 {
+                best = (distance, start.s + clamped, d);
+            }
+        }
+        (best.1, best.2)
+    }
+}
+
+/// Moves along a circle of the given curvature (a line if zero) by `length`.
+fn advance(pose: Pose, curvature: f64, length: f64) -> Pose {
+    let heading = pose.heading + curvature * length;
+    if curvature.abs() < 1e-12 {
+        let (sin, cos) = pose.heading.sin_cos();
+        return Pose { x: pose.x + length * cos, y: pose.y + length * sin, heading };
+    }
+    let radius = 1.0 / curvature;
+    Pose {
+        x: pose.x + radius * (heading.sin() - pose.heading.sin()),
+        y: pose.y - radius * (heading.cos() - pose.heading.cos()),
+        heading,
+    }
+}
+
+/// Projects (x, y) onto the line or circle through `start`: (distance along, offset left).
+fn project(start: Pose, curvature: f64, x: f64, y: f64) -> (f64, f64) {
+    let (sin, cos) = start.heading.sin_cos();
+    let (dx, dy) = (x - start.x, y - start.y);
+    if curvature.abs() < 1e-12 {
+        return (dx * cos + dy * sin, -dx * sin + dy * cos);
+    }
+    let radius = 1.0 / curvature;
+    let (cx, cy) = (start.x - radius * sin, start.y + radius * cos);
+    let (rx, ry) = (x - cx, y - cy);
+    let start_angle = (start.y - cy).atan2(start.x - cx);
+    let angle = wrap(ry.atan2(rx) - start_angle);
+    let d = radius.abs() - rx.hypot(ry);
+    (angle * radius, d * radius.signum())
+}
+
+fn wrap(angle: f64) -> f64 {
+    (angle + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn curved() -> Road {
+        let origin = Pose { x: 0.0, y: 4.0, heading: 0.0 };
+        let sections = vec![
+            Section::Straight { length: 50.0 },
+            Section::Arc { length: 400.0, curvature: 1.0 / 300.0 },
+            Section::Arc { length: 200.0, curvature: -1.0 / 500.0 },
+        ];
+        Road::new(origin, sections, 4.0, vec![30.0; 3], &[(LaneId(2), 300.0)])
+    }
+
+    #[test]
+    fn frenet_round_trip_on_every_section() {
+        let road = curved();
+        for &s in &[0.0, 10.0, 49.9, 50.1, 200.0, 449.0, 460.0, 640.0] {
+            for &d in &[0.0, -4.0, -8.0, 1.5] {
+                let pose = road.to_global(s, d, 0.0);
+                let (s2, d2) = road.to_frenet(pose.x, pose.y);
+                assert!((s - s2).abs() < 1e-6 && (d - d2).abs() < 1e-6, "s {s} d {d} -> {s2} {d2}");
+            }
+        }
+    }
+
+    #[test]
+    fn left_arc_turns_left_and_lanes_keep_their_width() {
+        let road = curved();
+        let start = road.to_global(50.0, 0.0, 0.0);
+        let end = road.to_global(450.0, 0.0, 0.0);
+        assert!((end.heading - start.heading - 400.0 / 300.0).abs() < 1e-9);
+        let inner = road.to_global(300.0, 0.0, 0.0);
+        let outer = road.to_global(300.0, -4.0, 0.0);
+        assert!(((inner.x - outer.x).hypot(inner.y - outer.y) - 4.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn lanes_end_and_lookups_respect_edges() {
+        let road = curved();
+        assert_eq!(road.lane_at(100.0, -8.3), Some(LaneId(2)));
+        assert_eq!(road.lane_at(301.0, -8.3), None);
+        assert_eq!(road.lane_at(100.0, 2.1), None);
+        assert_eq!(road.lane_at(100.0, -10.1), None);
+        assert!(road.contains(100.0, -1.9) && !road.contains(-1.0, 0.0));
+        assert_eq!(road.nearest_lane(-5.0), LaneId(1));
+    }
+}

@@ -1,0 +1,651 @@
+//! Scenario files: TOML as written by people (`ScenarioFile`, parsed with serde and
+//! unknown keys refused), validated into a `Scenario` that can build a fresh `World` for
+//! any seed. Every refusal names the file, the vehicle or key, and what is wrong.
+
+use std::fmt;
+use std::path::Path;
+
+use rand::RngExt;
+use serde::Deserialize;
+
+use crate::av::{AvParams, Game, GtDriver};
+use crate::dynamics::{LateralPath, Style, VehicleParams};
+use crate::road::{LaneId, Pose, Road, Section};
+use crate::scene::Role;
+use crate::world::{AgentCommand, Driver, Vehicle, World, WorldParams};
+
+/// Occurs when a scenario cannot be loaded; `file` names it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScenarioError {
+    /// The file (or inline name) the scenario came from.
+    pub file: String,
+    /// What is wrong.
+    pub kind: ScenarioErrorKind,
+}
+
+/// The ways a scenario can be wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ScenarioErrorKind {
+    /// Occurs when the file cannot be read.
+    Io(String),
+    /// Occurs when the TOML is malformed, a key is unknown or a field missing; the
+    /// message is the parser's, with line and column.
+    Syntax(String),
+    /// Occurs when a vehicle is placed on a lane the road does not have.
+    UnknownLane {
+        /// The vehicle's name.
+        vehicle: String,
+        /// The lane it names.
+        lane: i64,
+        /// How many lanes the road has.
+        lanes: usize,
+    },
+    /// Occurs when a vehicle starts off the paved road (past its lane's end, say).
+    OffRoad {
+        /// The vehicle's name.
+        vehicle: String,
+        /// Where it is and why that is off the road.
+        detail: String,
+    },
+    /// Occurs when two vehicles start overlapping.
+    Overlap {
+        /// One vehicle's name.
+        first: String,
+        /// The other's.
+        second: String,
+    },
+    /// Occurs when two vehicles share a name.
+    DuplicateName(String),
+    /// Occurs when a value is out of its range; `key` is its dotted path.
+    Invalid {
+        /// Dotted path of the value.
+        key: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// Occurs when an override names a key that cannot be set.
+    BadOverride {
+        /// The override's dotted key.
+        key: String,
+        /// Why it cannot be applied.
+        message: String,
+    },
+}
+
+impl fmt::Display for ScenarioError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "invalid scenario '{}': ", self.file)?;
+        match &self.kind {
+            ScenarioErrorKind::Io(message) => write!(f, "cannot read it: {message}"),
+            ScenarioErrorKind::Syntax(message) => write!(f, "{}", message.trim_end()),
+            ScenarioErrorKind::UnknownLane { vehicle, lane, lanes } => {
+                write!(f, "vehicle '{vehicle}' is on lane {lane}, but the road has lanes 0..={}", lanes - 1)
+            }
+            ScenarioErrorKind::OffRoad { vehicle, detail } => {
+                write!(f, "vehicle '{vehicle}' starts off the road: {detail}")
+            }
+            ScenarioErrorKind::Overlap { first, second } => {
+                write!(f, "vehicles '{first}' and '{second}' overlap at the start; move one of them")
+            }
+            ScenarioErrorKind::DuplicateName(name) => {
+                write!(f, "two vehicles are named '{name}'; names must be unique")
+            }
+            ScenarioErrorKind::Invalid { key, message } => write!(f, "`{key}` {message}"),
+            ScenarioErrorKind::BadOverride { key, message } => write!(f, "override `{key}`: {message}"),
+        }
+    }
+}
+
+impl std::error::Error for ScenarioError {}
+
+/// The scenario files shipped in `scenarios/`, compiled in so the server needs no
+/// files beside it: (name, file name, text).
+pub const BUILTIN: [(&str, &str, &str); 3] = [
+    ("merge", "merge.toml", include_str!("../../../scenarios/merge.toml")),
+    ("overtake", "overtake.toml", include_str!("../../../scenarios/overtake.toml")),
+    ("highway", "highway.toml", include_str!("../../../scenarios/highway.toml")),
+];
+
+/// Loads a built-in scenario by name (`merge`, `overtake`, `highway`).
+pub fn builtin(name: &str) -> Option<Result<Scenario, ScenarioError>> {
+    BUILTIN.iter().find(|(n, ..)| *n == name).map(|(_, file, text)| Scenario::parse(file, text, &[]))
+}
+
+/// The file as written.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ScenarioFile {
+    name: String,
+    #[serde(default)]
+    description: String,
+    #[serde(default)]
+    sim: SimFile,
+    road: RoadFile,
+    #[serde(default, rename = "vehicle")]
+    vehicles: Vec<VehicleFile>,
+    traffic: Option<TrafficFile>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct SimFile {
+    physics_dt: f64,
+    control_dt: f64,
+    step_dt: f64,
+    max_cycles: u32,
+}
+
+impl Default for SimFile {
+    fn default() -> Self {
+        let world = WorldParams::default();
+        SimFile { physics_dt: world.physics_dt, control_dt: world.control_dt, step_dt: 0.1, max_cycles: 200 }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RoadFile {
+    lanes: i64,
+    #[serde(default = "default_lane_width")]
+    lane_width: f64,
+    speed_limits: Vec<f64>,
+    #[serde(default)]
+    origin: OriginFile,
+    sections: Vec<SectionFile>,
+    #[serde(default)]
+    lane_ends: Vec<LaneEndFile>,
+}
+
+fn default_lane_width() -> f64 {
+    4.0
+}
+
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OriginFile {
+    x: f64,
+    y: f64,
+    heading: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SectionFile {
+    length: f64,
+    /// Signed radius (m), positive bends left; absent for a straight section.
+    radius: Option<f64>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LaneEndFile {
+    lane: i64,
+    s: f64,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct VehicleFile {
+    name: String,
+    lane: Option<i64>,
+    s: Option<f64>,
+    x: Option<f64>,
+    y: Option<f64>,
+    speed: f64,
+    target_speed: Option<f64>,
+    driver: DriverFile,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+enum DriverFile {
+    Agent {
+        #[serde(default = "default_style")]
+        style: Style,
+        #[serde(default)]
+        action: ActionKind,
+    },
+    Idm {
+        #[serde(default = "default_style")]
+        style: Style,
+    },
+    Gt {
+        #[serde(default = "default_style")]
+        style: Style,
+        game: Game,
+        #[serde(default)]
+        role: Role,
+        #[serde(default)]
+        follower_tolerance: f64,
+    },
+}
+
+fn default_style() -> Style {
+    Style::Normal
+}
+
+/// How a learner drives its vehicle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ActionKind {
+    /// Discrete 5: lane left, idle, lane right, faster, slower.
+    #[default]
+    Meta,
+    /// Acceleration and lateral preview target.
+    Continuous,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TrafficFile {
+    count: u32,
+    #[serde(default = "default_density")]
+    density: f64,
+    speed: [f64; 2],
+    lanes: Option<Vec<i64>>,
+    #[serde(default = "default_style")]
+    style: Style,
+}
+
+fn default_density() -> f64 {
+    1.0
+}
+
+/// A named vehicle, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VehicleSpec {
+    /// Unique name.
+    pub name: String,
+    /// Lane it starts in.
+    pub lane: LaneId,
+    /// Start position along the road (m).
+    pub s: f64,
+    /// Start offset (m).
+    pub d: f64,
+    /// Start speed (m/s).
+    pub speed: f64,
+    /// Speed its driver aims for (m/s).
+    pub target_speed: f64,
+    /// Driving style.
+    pub style: Style,
+    /// Who drives it.
+    pub driver: DriverSpec,
+}
+
+/// Who drives a named vehicle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum DriverSpec {
+    /// A learner, through the env.
+    Agent(ActionKind),
+    /// IDM + MOBIL.
+    Idm,
+    /// The game-theoretic AV of `av`.
+    Gt {
+        /// Nash or Stackelberg.
+        game: Game,
+        /// Leader (the paper's EC) or follower (its AC).
+        role: Role,
+        /// Relative tolerance on the follower set of eq. (17b); 0 is the paper's.
+        follower_tolerance: f64,
+    },
+}
+
+/// Random IDM traffic placed like highway-env's `Vehicle.create_random`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrafficSpec {
+    /// How many vehicles.
+    pub count: u32,
+    /// highway-env's `vehicles_density`.
+    pub density: f64,
+    /// Initial speed range (m/s); each car's target speed is its initial speed.
+    pub speed: [f64; 2],
+    /// Lanes to place cars in.
+    pub lanes: Vec<LaneId>,
+    /// Style of their steering.
+    pub style: Style,
+}
+
+/// A validated scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    /// Short name (`merge`).
+    pub name: String,
+    /// One line on what it is.
+    pub description: String,
+    /// The road.
+    pub road: Road,
+    /// Physics and control timing.
+    pub world: WorldParams,
+    /// Simulated seconds per env step.
+    pub step_dt: f64,
+    /// Env steps per episode before truncation.
+    pub max_cycles: u32,
+    /// Named vehicles in file order.
+    pub vehicles: Vec<VehicleSpec>,
+    /// Random background traffic, if any.
+    pub traffic: Option<TrafficSpec>,
+}
+
+impl Scenario {
+    /// Reads and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+        let file = path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into_owned());
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| ScenarioError { file: file.clone(), kind: ScenarioErrorKind::Io(e.to_string()) })?;
+        Scenario::parse(&file, &text, &[])
+    }
+
+    /// Parses and validates scenario text; `overrides` are (dotted key, TOML value)
+    /// pairs applied before validation, so they are checked exactly as the file is.
+    pub fn parse(file: &str, text: &str, overrides: &[(String, toml::Value)]) -> Result<Scenario, ScenarioError> {
+        let fail = |kind| ScenarioError { file: file.to_string(), kind };
+        let mut table: toml::Table =
+            text.parse().map_err(|e: toml::de::Error| fail(ScenarioErrorKind::Syntax(e.to_string())))?;
+        for (key, value) in overrides {
+            apply_override(&mut table, key, value.clone()).map_err(&fail)?;
+        }
+        let raw: ScenarioFile = if overrides.is_empty() {
+            toml::from_str(text)
+        } else {
+            ScenarioFile::deserialize(toml::Value::Table(table))
+        }
+        .map_err(|e: toml::de::Error| fail(ScenarioErrorKind::Syntax(e.to_string())))?;
+        raw.validate().map_err(fail)
+    }
+
+    /// Builds the world at time zero; `seed` drives the random traffic. The named
+    /// vehicles enter the world sorted by name, so nothing in it (ids, tie-breaks, the
+    /// order of sums) depends on the order of `[[vehicle]]` blocks in the file.
+    pub fn build(&self, seed: u64) -> World {
+        let mut world = World::new(self.road.clone(), self.world, seed);
+        let mut named: Vec<&VehicleSpec> = self.vehicles.iter().collect();
+        named.sort_by(|a, b| a.name.cmp(&b.name));
+        for spec in named {
+            let driver = match spec.driver {
+                DriverSpec::Agent(_) => Driver::Agent(AgentCommand::Track),
+                DriverSpec::Idm => Driver::Idm,
+                DriverSpec::Gt { game, role, follower_tolerance } => {
+                    let mut params = AvParams::default();
+                    params.decision.game.follower_tolerance = follower_tolerance;
+                    Driver::Gt(Box::new(GtDriver::new(game, role, params)))
+                }
+            };
+            let mut vehicle = Vehicle::new(&spec.name, &self.road, spec.lane, spec.s, spec.speed, spec.style, driver);
+            vehicle.state.d = spec.d;
+            vehicle.path = LateralPath::lane_change(spec.d, self.road.lane_center(spec.lane), 0.0);
+            vehicle.target_speed = spec.target_speed;
+            world.add(vehicle);
+        }
+        if let Some(traffic) = &self.traffic {
+            place_traffic(&mut world, traffic);
+        }
+        world
+    }
+
+    /// The learner-driven vehicles, in file order: the env's `possible_agents`.
+    pub fn agents(&self) -> impl Iterator<Item = &VehicleSpec> {
+        self.vehicles.iter().filter(|v| matches!(v.driver, DriverSpec::Agent(_)))
+    }
+}
+
+/// highway-env's `create_random`: each car goes ahead of the frontmost one by
+/// `(12 + v) * exp(-5/40 * lanes) / density * U(0.9, 1.1)`, in a random lane.
+fn place_traffic(world: &mut World, traffic: &TrafficSpec) {
+    let lanes_factor = (-5.0 / 40.0 * world.road().lane_count() as f64).exp();
+    for k in 0..traffic.count {
+        let speed = world.rng().random_range(traffic.speed[0]..=traffic.speed[1]);
+        let lane = traffic.lanes[world.rng().random_range(0..traffic.lanes.len())];
+        let offset = (12.0 + speed) * lanes_factor / traffic.density;
+        let front =
+            world.vehicles().iter().map(|v| v.state.s).fold(None, |m: Option<f64>, s| Some(m.map_or(s, |m| m.max(s))));
+        let s = front.unwrap_or(3.0 * offset) + offset * world.rng().random_range(0.9..1.1);
+        let name = format!("car{k}");
+        let vehicle = Vehicle::new(&name, world.road(), lane, s, speed, traffic.style, Driver::Idm);
+        world.add(vehicle);
+    }
+}
+
+/// Sets `key` (dotted; `vehicle.<name>.<field>` addresses a vehicle by name) to `value`.
+fn apply_override(table: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), ScenarioErrorKind> {
+    let bad = |message: String| ScenarioErrorKind::BadOverride { key: key.to_string(), message };
+    let parts: Vec<&str> = key.split('.').collect();
+    if parts.iter().any(|part| part.is_empty()) {
+        return Err(bad("every part of a dotted key must be non-empty".into()));
+    }
+    let (last, path) = parts.split_last().ok_or_else(|| bad("empty key".into()))?;
+    let mut current = table;
+    let mut parts = path.iter();
+    while let Some(&part) = parts.next() {
+        let entry = current.entry(part).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        current = match entry {
+            toml::Value::Table(inner) => inner,
+            toml::Value::Array(items) => {
+                let name =
+                    parts.next().ok_or_else(|| bad(format!("name the `{part}` to change: {part}.<name>.<field>")))?;
+                items
+                    .iter_mut()
+                    .find_map(|item| match item {
+                        toml::Value::Table(t) if t.get("name").and_then(toml::Value::as_str) == Some(name) => Some(t),
+                        _ => None,
+                    })
+                    .ok_or_else(|| bad(format!("there is no {part} named '{name}'")))?
+            }
+            _ => return Err(bad(format!("`{part}` is a value, not a table"))),
+        };
+    }
+    current.insert(last.to_string(), value);
+    Ok(())
+}
+
+impl ScenarioFile {
+    fn validate(self) -> Result<Scenario, ScenarioErrorKind> {
+        let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
+        let sim = &self.sim;
+        for (key, value) in
+            [("sim.physics_dt", sim.physics_dt), ("sim.control_dt", sim.control_dt), ("sim.step_dt", sim.step_dt)]
+        {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(invalid(key, format!("must be a positive number of seconds, not {value}")));
+            }
+        }
+        if sim.control_dt < sim.physics_dt || sim.step_dt < sim.physics_dt {
+            return Err(invalid("sim.physics_dt", "must not exceed control_dt and step_dt".into()));
+        }
+        if sim.max_cycles == 0 {
+            return Err(invalid("sim.max_cycles", "must be at least 1".into()));
+        }
+        let road = self.road.validate()?;
+        let vehicles = self.vehicles.iter().map(|v| v.validate(&road)).collect::<Result<Vec<_>, _>>()?;
+        check_names_and_overlaps(&vehicles, &road)?;
+        let traffic = self.traffic.map(|t| t.validate(&road)).transpose()?;
+        Ok(Scenario {
+            name: self.name,
+            description: self.description,
+            road,
+            world: WorldParams { physics_dt: sim.physics_dt, control_dt: sim.control_dt },
+            step_dt: sim.step_dt,
+            max_cycles: sim.max_cycles,
+            vehicles,
+            traffic,
+        })
+    }
+}
+
+impl RoadFile {
+    fn validate(&self) -> Result<Road, ScenarioErrorKind> {
+        let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
+        if !(1..=64).contains(&self.lanes) {
+            return Err(invalid("road.lanes", format!("must be between 1 and 64, not {}", self.lanes)));
+        }
+        if !(self.lane_width.is_finite() && self.lane_width > 0.0) {
+            return Err(invalid("road.lane_width", format!("must be positive, not {}", self.lane_width)));
+        }
+        if self.speed_limits.len() != self.lanes as usize {
+            return Err(invalid(
+                "road.speed_limits",
+                format!("has {} entries but the road has {} lanes", self.speed_limits.len(), self.lanes),
+            ));
+        }
+        if let Some(bad) = self.speed_limits.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+            return Err(invalid("road.speed_limits", format!("must be positive speeds in m/s, not {bad}")));
+        }
+        if self.sections.is_empty() {
+            return Err(invalid("road.sections", "needs at least one section".into()));
+        }
+        let mut sections = Vec::with_capacity(self.sections.len());
+        for (i, section) in self.sections.iter().enumerate() {
+            if !(section.length.is_finite() && section.length > 0.0) {
+                return Err(invalid(
+                    &format!("road.sections[{i}].length"),
+                    format!("must be positive, not {}", section.length),
+                ));
+            }
+            sections.push(match section.radius {
+                None => Section::Straight { length: section.length },
+                Some(radius) if radius.is_finite() && radius.abs() > self.lane_width * self.lanes as f64 => {
+                    Section::Arc { length: section.length, curvature: 1.0 / radius }
+                }
+                Some(radius) => {
+                    return Err(invalid(
+                        &format!("road.sections[{i}].radius"),
+                        format!("{radius} m is tighter than the road is wide; lanes would fold over"),
+                    ));
+                }
+            });
+        }
+        let length: f64 = sections.iter().map(Section::length).sum();
+        let mut ends = Vec::new();
+        for (i, end) in self.lane_ends.iter().enumerate() {
+            if !(0..self.lanes).contains(&end.lane) {
+                return Err(invalid(
+                    &format!("road.lane_ends[{i}].lane"),
+                    format!("{} does not exist (lanes 0..={})", end.lane, self.lanes - 1),
+                ));
+            }
+            if !(end.s.is_finite() && end.s > 0.0 && end.s <= length) {
+                return Err(invalid(
+                    &format!("road.lane_ends[{i}].s"),
+                    format!("{} is not on the road (0..{length})", end.s),
+                ));
+            }
+            ends.push((LaneId(end.lane as u32), end.s));
+        }
+        let origin = Pose { x: self.origin.x, y: self.origin.y, heading: self.origin.heading };
+        Ok(Road::new(origin, sections, self.lane_width, self.speed_limits.clone(), &ends))
+    }
+}
+
+impl VehicleFile {
+    fn validate(&self, road: &Road) -> Result<VehicleSpec, ScenarioErrorKind> {
+        let vehicle = self.name.clone();
+        let invalid = |field: &str, message: String| ScenarioErrorKind::Invalid {
+            key: format!("vehicle '{}'.{field}", self.name),
+            message,
+        };
+        if self.name.is_empty() || self.name.contains(|c: char| c.is_whitespace() || c == '/') {
+            return Err(invalid("name", "must be non-empty, without spaces or '/'".into()));
+        }
+        if !(self.speed.is_finite() && self.speed >= 0.0) {
+            return Err(invalid("speed", format!("must be a speed >= 0 in m/s, not {}", self.speed)));
+        }
+        let target_speed = self.target_speed.unwrap_or(self.speed);
+        if !(target_speed.is_finite() && target_speed > 0.0) {
+            return Err(invalid("target_speed", format!("must be positive, not {target_speed}")));
+        }
+        let (s, d, lane) = match (self.lane, self.s, self.x, self.y) {
+            (Some(lane), Some(s), None, None) => {
+                if !road.has_lane(lane) {
+                    return Err(ScenarioErrorKind::UnknownLane { vehicle, lane, lanes: road.lane_count() });
+                }
+                let lane = LaneId(lane as u32);
+                (s, road.lane_center(lane), lane)
+            }
+            (None, None, Some(x), Some(y)) => {
+                let (s, d) = road.to_frenet(x, y);
+                let lane = road.lane_at(s, d).ok_or_else(|| ScenarioErrorKind::OffRoad {
+                    vehicle: vehicle.clone(),
+                    detail: format!("({x}, {y}) is {d:.2} m from the reference line, outside every lane"),
+                })?;
+                (s, d, lane)
+            }
+            _ => return Err(invalid("position", "give either `lane` and `s`, or `x` and `y`".into())),
+        };
+        if !s.is_finite() || s < 0.0 || s > road.lane_end(lane) {
+            return Err(ScenarioErrorKind::OffRoad {
+                vehicle,
+                detail: format!("s = {s} is outside lane {} (0..={})", lane.0, road.lane_end(lane)),
+            });
+        }
+        let (style, driver) = match self.driver {
+            DriverFile::Agent { style, action } => (style, DriverSpec::Agent(action)),
+            DriverFile::Idm { style } => (style, DriverSpec::Idm),
+            DriverFile::Gt { style, game, role, follower_tolerance } => {
+                if !(follower_tolerance.is_finite() && follower_tolerance >= 0.0) {
+                    return Err(invalid(
+                        "driver.follower_tolerance",
+                        format!("must be a number >= 0, not {follower_tolerance}"),
+                    ));
+                }
+                (style, DriverSpec::Gt { game, role, follower_tolerance })
+            }
+        };
+        Ok(VehicleSpec { name: self.name.clone(), lane, s, d, speed: self.speed, target_speed, style, driver })
+    }
+}
+
+fn check_names_and_overlaps(vehicles: &[VehicleSpec], road: &Road) -> Result<(), ScenarioErrorKind> {
+    let body = VehicleParams::default();
+    let half = (body.length / 2.0, body.width / 2.0);
+    for (i, a) in vehicles.iter().enumerate() {
+        for b in &vehicles[i + 1..] {
+            if a.name == b.name {
+                return Err(ScenarioErrorKind::DuplicateName(a.name.clone()));
+            }
+            let pa = road.to_global(a.s, a.d, 0.0);
+            let pb = road.to_global(b.s, b.d, 0.0);
+            if crate::world::oriented_boxes_overlap((pa.x, pa.y, pa.heading), (pb.x, pb.y, pb.heading), half) {
+                return Err(ScenarioErrorKind::Overlap { first: a.name.clone(), second: b.name.clone() });
+            }
+        }
+    }
+    Ok(())
+}
+
+impl TrafficFile {
+    fn validate(self, road: &Road) -> Result<TrafficSpec, ScenarioErrorKind> {
+        let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
+        if self.count > 10_000 {
+            return Err(invalid("traffic.count", format!("{} is more than the 10000 a world supports", self.count)));
+        }
+        if !(self.density.is_finite() && self.density > 0.0) {
+            return Err(invalid("traffic.density", format!("must be positive, not {}", self.density)));
+        }
+        let [low, high] = self.speed;
+        if !(low.is_finite() && high.is_finite() && 0.0 < low && low <= high) {
+            return Err(invalid(
+                "traffic.speed",
+                format!("must be [low, high] with 0 < low <= high, not [{low}, {high}]"),
+            ));
+        }
+        let lanes = self.lanes.unwrap_or_else(|| (0..road.lane_count() as i64).collect());
+        if lanes.is_empty() {
+            return Err(invalid("traffic.lanes", "must name at least one lane".into()));
+        }
+        if let Some(&lane) = lanes.iter().find(|&&l| !road.has_lane(l)) {
+            return Err(invalid(
+                "traffic.lanes",
+                format!("lane {lane} does not exist (lanes 0..={})", road.lane_count() - 1),
+            ));
+        }
+        Ok(TrafficSpec {
+            count: self.count,
+            density: self.density,
+            speed: self.speed,
+            lanes: lanes.into_iter().map(|l| LaneId(l as u32)).collect(),
+            style: self.style,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,187 @@
+use super::*;
+
+fn parse(text: &str) -> Result<Scenario, ScenarioError> {
+    Scenario::parse("test.toml", text, &[])
+}
+
+const GOOD: &str = r#"
+name = "t"
+[road]
+lanes = 2
+speed_limits = [30.0, 30.0]
+sections = [{ length = 500.0 }]
+lane_ends = [{ lane = 1, s = 200.0 }]
+[[vehicle]]
+name = "a"
+lane = 0
+s = 10.0
+speed = 20.0
+driver = { kind = "agent" }
+[[vehicle]]
+name = "b"
+lane = 1
+s = 30.0
+speed = 20.0
+driver = { kind = "idm", style = "aggressive" }
+"#;
+
+fn with(replace: &str, by: &str) -> String {
+    assert!(GOOD.contains(replace), "test setup: {replace}");
+    GOOD.replacen(replace, by, 1)
+}
+
+#[test]
+fn every_shipped_scenario_loads_and_builds() {
+    for (name, file, _) in BUILTIN {
+        let scenario = builtin(name).unwrap().unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert_eq!(scenario.name, name);
+        assert_eq!(scenario.agents().count(), 1, "{file} has one learner");
+        let world = scenario.build(7);
+        assert!(world.vehicles().len() >= 2);
+    }
+    let highway = builtin("highway").unwrap().unwrap();
+    assert_eq!(highway.build(1).vehicles().len(), 51);
+    assert_eq!((highway.step_dt, highway.max_cycles, highway.road.lane_count()), (1.0, 40, 4));
+}
+
+#[test]
+fn overtake_places_the_papers_cars_in_their_lanes() {
+    let overtake = builtin("overtake").unwrap().unwrap();
+    let lanes: Vec<u32> = overtake.vehicles.iter().map(|v| v.lane.0).collect();
+    assert_eq!(lanes, [1, 1, 0, 2]); // ec, lc middle; ac1 left; ac2 right
+    for spec in &overtake.vehicles {
+        let offset = spec.d - overtake.road.lane_center(spec.lane);
+        assert!(offset.abs() < 0.1, "{} is {offset} m off its lane centre", spec.name);
+    }
+}
+
+#[test]
+fn a_good_file_loads_and_overrides_apply() {
+    let scenario = parse(GOOD).unwrap();
+    assert_eq!(scenario.vehicles[1].style, Style::Aggressive);
+    let overrides = [
+        ("vehicle.b.speed".to_string(), toml::Value::Float(12.0)),
+        ("sim.max_cycles".to_string(), toml::Value::Integer(9)),
+    ];
+    let changed = Scenario::parse("test.toml", GOOD, &overrides).unwrap();
+    assert_eq!((changed.vehicles[1].speed, changed.max_cycles), (12.0, 9));
+}
+
+fn error(text: &str) -> String {
+    let err = parse(text).expect_err("should be refused");
+    assert_eq!(err.file, "test.toml");
+    err.to_string()
+}
+
+#[test]
+fn unknown_key_is_named() {
+    let message = error(&with(
+        "speed = 20.0\ndriver = { kind = \"agent\" }",
+        "speed = 20.0\nsped = 3.0\ndriver = { kind = \"agent\" }",
+    ));
+    assert!(message.contains("invalid scenario 'test.toml'") && message.contains("sped"), "{message}");
+}
+
+#[test]
+fn missing_field_is_named() {
+    let message = error(&with("speed = 20.0\ndriver = { kind = \"agent\" }", "driver = { kind = \"agent\" }"));
+    assert!(message.contains("missing field") && message.contains("speed"), "{message}");
+}
+
+#[test]
+fn unknown_lane_names_the_vehicle_and_the_lanes() {
+    let message = error(&with("lane = 0", "lane = 3"));
+    assert!(message.contains("vehicle 'a' is on lane 3, but the road has lanes 0..=1"), "{message}");
+}
+
+#[test]
+fn vehicle_past_its_lane_end_is_off_road() {
+    let message = error(&with("s = 30.0", "s = 230.0"));
+    assert!(message.contains("vehicle 'b' starts off the road") && message.contains("outside lane 1"), "{message}");
+}
+
+#[test]
+fn global_position_off_the_road_is_refused() {
+    let message = error(&with("lane = 0\ns = 10.0", "x = 10.0\ny = 9.0"));
+    assert!(message.contains("vehicle 'a' starts off the road"), "{message}");
+}
+
+#[test]
+fn overlapping_vehicles_are_named() {
+    let message = error(&with("lane = 1\ns = 30.0", "lane = 0\ns = 13.0"));
+    assert!(message.contains("vehicles 'a' and 'b' overlap"), "{message}");
+}
+
+#[test]
+fn duplicate_names_and_bad_values_are_refused() {
+    assert!(error(&with("name = \"b\"", "name = \"a\"")).contains("two vehicles are named 'a'"));
+    assert!(
+        error(&with("speed_limits = [30.0, 30.0]", "speed_limits = [30.0]"))
+            .contains("`road.speed_limits` has 1 entries")
+    );
+    assert!(
+        error(&with("lane = 1, s = 200.0", "lane = 5, s = 200.0"))
+            .contains("`road.lane_ends[0].lane` 5 does not exist")
+    );
+    assert!(
+        error(&with("{ length = 500.0 }", "{ length = -5.0 }")).contains("`road.sections[0].length` must be positive")
+    );
+    assert!(error(&with("speed = 20.0", "speed = -1.0")).contains("vehicle 'a'.speed"));
+    assert!(error(&with("kind = \"agent\"", "kind = \"robot\"")).contains("robot"));
+    assert!(error("name = ").contains("invalid scenario 'test.toml'"));
+}
+
+#[test]
+fn bad_overrides_are_refused_like_bad_files() {
+    let refuse = |key: &str, value: toml::Value| {
+        Scenario::parse("test.toml", GOOD, &[(key.to_string(), value)]).unwrap_err().to_string()
+    };
+    assert!(refuse("vehicle.zed.speed", toml::Value::Float(1.0)).contains("there is no vehicle named 'zed'"));
+    assert!(
+        refuse("road.lanes", toml::Value::Integer(7))
+            .contains("`road.speed_limits` has 2 entries but the road has 7 lanes")
+    );
+    assert!(refuse("sim.bogus", toml::Value::Integer(1)).contains("bogus"));
+    assert!(refuse("vehicle.a.lane", toml::Value::Integer(9)).contains("vehicle 'a' is on lane 9"));
+}
+
+#[test]
+fn missing_files_are_reported_by_name() {
+    let err = Scenario::load(Path::new("/nonexistent/nothing.toml")).unwrap_err();
+    assert_eq!(err.file, "nothing.toml");
+    assert!(matches!(err.kind, ScenarioErrorKind::Io(_)));
+}
+
+#[test]
+fn a_gt_driver_loads_with_its_game_and_role() {
+    let text = with(
+        "driver = { kind = \"agent\" }",
+        "driver = { kind = \"gt\", style = \"aggressive\", game = \"stackelberg\" }",
+    );
+    let scenario = parse(&text).unwrap();
+    let expected = DriverSpec::Gt { game: Game::Stackelberg, role: Role::Leader, follower_tolerance: 0.0 };
+    assert_eq!((scenario.vehicles[0].driver, scenario.vehicles[0].style), (expected, Style::Aggressive));
+    let text =
+        with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\", game = \"nash\", role = \"follower\" }");
+    let world = parse(&text).unwrap().build(0);
+    match &world.vehicles()[0].driver {
+        Driver::Gt(gt) => assert_eq!((gt.game, gt.role), (Game::Nash, Role::Follower)),
+        other => panic!("expected a gt driver, got {other:?}"),
+    }
+}
+
+#[test]
+fn a_bad_gt_driver_is_refused_with_the_reason() {
+    let bad_game = error(&with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\", game = \"pareto\" }"));
+    assert!(bad_game.contains("pareto") && bad_game.contains("nash") && bad_game.contains("stackelberg"), "{bad_game}");
+    let no_game = error(&with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\" }"));
+    assert!(no_game.contains("missing field") && no_game.contains("game"), "{no_game}");
+    let bad_role =
+        error(&with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\", game = \"nash\", role = \"boss\" }"));
+    assert!(bad_role.contains("boss") && bad_role.contains("follower"), "{bad_role}");
+    let tolerance = error(&with(
+        "driver = { kind = \"agent\" }",
+        "driver = { kind = \"gt\", game = \"nash\", follower_tolerance = -0.5 }",
+    ));
+    assert!(tolerance.contains("vehicle 'a'.driver.follower_tolerance") && tolerance.contains("-0.5"), "{tolerance}");
+}

@@ -1,0 +1,539 @@
+//! The world: a road, the vehicles on it and their drivers, advanced one fixed physics
+//! step at a time. `World::tick` runs its stages in order: keep the vehicles sorted
+//! along the road, let the drivers decide (at the control rate, from one `Scene` of the
+//! world as it was at the start of the period), integrate the dynamics, detect
+//! collisions. Drivers decide in two rounds: everyone but the game-theoretic followers,
+//! then those followers, who answer their leaders' decisions of this period. Results
+//! depend on roles, never on the order of vehicles in a file. Neighbour queries and
+//! collision checks use sorted orders, so a tick costs O(n) for n vehicles.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::av::{self, AvParams, GtDriver, GtStep};
+use crate::dynamics::{self, Command, DriverParams, LateralPath, Style, VehicleParams, VehicleState};
+use crate::road::{LaneChange, LaneId, Road};
+use crate::scene::{Car, DriverKind, Role, Scene};
+use crate::traffic::{self, IdmDecision, IdmParams};
+
+pub use crate::scene::{Status, VehicleId};
+
+/// Timing of the simulation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WorldParams {
+    /// Physics step (s). 0.01, chosen here (docs/design.md, "Timing": 100 Hz).
+    pub physics_dt: f64,
+    /// Drivers decide every this many seconds (s). 0.1, chosen here (docs/design.md, "Timing": 10 Hz).
+    pub control_dt: f64,
+}
+
+impl Default for WorldParams {
+    fn default() -> Self {
+        WorldParams { physics_dt: 0.01, control_dt: 0.1 }
+    }
+}
+
+impl WorldParams {
+    /// Physics steps per control period.
+    pub fn substeps_per_control(&self) -> u64 {
+        ((self.control_dt / self.physics_dt).round() as u64).max(1)
+    }
+}
+
+/// Who drives a vehicle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Driver {
+    /// A learner outside the process, through the env's actions.
+    Agent(AgentCommand),
+    /// IDM + MOBIL background traffic.
+    Idm,
+    /// The paper's game-theoretic AV (`av`): its game, role, constants and memory.
+    Gt(Box<GtDriver>),
+}
+
+/// What a learner last asked its vehicle to do.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum AgentCommand {
+    /// Track the vehicle's target speed and target lane (meta actions).
+    Track,
+    /// Apply this acceleration and preview point directly (continuous actions).
+    Direct(Command),
+}
+
+/// One vehicle: its state, its driver and what the driver is doing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Vehicle {
+    /// Name from the scenario file (unique in a world).
+    pub name: String,
+    /// The 8 states of eq. (8).
+    pub state: VehicleState,
+    /// Driving style (Table I for steering; Table III for costs).
+    pub style: Style,
+    /// Table I's parameters for `style`.
+    pub driver_params: DriverParams,
+    /// Who drives.
+    pub driver: Driver,
+    /// The lane the vehicle is in or changing to.
+    pub target_lane: LaneId,
+    /// The lateral path the driver previews.
+    pub path: LateralPath,
+    /// Speed the driver aims for (m/s).
+    pub target_speed: f64,
+    /// The command applied during the current control period.
+    pub command: Command,
+    /// Driving, crashed, off road or gone.
+    pub status: Status,
+    /// Simulated time of the last MOBIL consultation (s).
+    pub last_lane_decision: f64,
+}
+
+impl Vehicle {
+    /// A vehicle cruising along `lane` at `speed`.
+    pub fn new(name: &str, road: &Road, lane: LaneId, s: f64, speed: f64, style: Style, driver: Driver) -> Vehicle {
+        let d = road.lane_center(lane);
+        Vehicle {
+            name: name.to_string(),
+            state: VehicleState::cruising(s, d, speed),
+            style,
+            driver_params: DriverParams::for_style(style),
+            driver,
+            target_lane: lane,
+            path: LateralPath::hold(d),
+            target_speed: speed,
+            command: Command { accel: 0.0, preview: d },
+            status: Status::Driving,
+            last_lane_decision: f64::NEG_INFINITY,
+        }
+    }
+
+    /// Whether the vehicle still takes part in traffic (driving, or crashed and in the way).
+    pub fn on_road(&self) -> bool {
+        matches!(self.status, Status::Driving | Status::Crashed)
+    }
+
+    fn driver_kind(&self) -> DriverKind {
+        match &self.driver {
+            Driver::Agent(_) => DriverKind::Agent,
+            Driver::Idm => DriverKind::Idm,
+            Driver::Gt(gt) => DriverKind::Gt(gt.role),
+        }
+    }
+}
+
+/// A collision found in the last tick.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Collision {
+    /// The vehicle behind (smaller s).
+    pub rear: VehicleId,
+    /// The vehicle ahead.
+    pub front: VehicleId,
+}
+
+/// What one driver decided for the coming control period.
+#[derive(Debug, Clone, PartialEq)]
+enum Decision {
+    /// Apply this acceleration (learners, and vehicles that no longer drive).
+    Accel(f64),
+    /// IDM + MOBIL.
+    Idm(IdmDecision),
+    /// The game-theoretic AV.
+    Gt(Box<GtStep>),
+}
+
+/// The simulated world. Its fields are private so its invariants hold: every vehicle is
+/// in the sorted orders, and the scene is the world as of the last control instant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct World {
+    /// The road, the vehicle body and the cars as drivers last saw them.
+    scene: Scene,
+    /// Every vehicle, indexed by `VehicleId`.
+    vehicles: Vec<Vehicle>,
+    params: WorldParams,
+    idm: IdmParams,
+    time: f64,
+    ticks: u64,
+    /// The tick the scene was taken at.
+    scene_tick: Option<u64>,
+    collisions: Vec<Collision>,
+    /// The world's only source of randomness, seeded at creation.
+    rng: ChaCha8Rng,
+    /// Vehicles by s, kept sorted every tick for the collision sweep.
+    order: Vec<u32>,
+    /// Scratch of `decide`: one decision per vehicle.
+    decisions: Vec<Decision>,
+}
+
+impl World {
+    /// An empty world on `road`, its randomness seeded with `seed`.
+    pub fn new(road: Road, params: WorldParams, seed: u64) -> World {
+        World {
+            scene: Scene::new(road, VehicleParams::default(), params.control_dt),
+            vehicles: Vec::new(),
+            params,
+            idm: IdmParams::default(),
+            time: 0.0,
+            ticks: 0,
+            scene_tick: None,
+            collisions: Vec::new(),
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            order: Vec::new(),
+            decisions: Vec::new(),
+        }
+    }
+
+    /// Adds a vehicle and returns its id.
+    pub fn add(&mut self, vehicle: Vehicle) -> VehicleId {
+        self.order.push(self.vehicles.len() as u32);
+        self.vehicles.push(vehicle);
+        self.sort_along_road();
+        self.scene_tick = None;
+        VehicleId(self.vehicles.len() as u32 - 1)
+    }
+
+    /// The road.
+    pub fn road(&self) -> &Road {
+        &self.scene.road
+    }
+
+    /// Body and tyres, shared by every vehicle (Table II).
+    pub fn vehicle_params(&self) -> &VehicleParams {
+        &self.scene.vehicle
+    }
+
+    /// Timing.
+    pub fn params(&self) -> &WorldParams {
+        &self.params
+    }
+
+    /// Background drivers' constants.
+    pub fn idm(&self) -> &IdmParams {
+        &self.idm
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Collisions that happened since the world began, in order.
+    pub fn collisions(&self) -> &[Collision] {
+        &self.collisions
+    }
+
+    /// Every vehicle, by id.
+    pub fn vehicles(&self) -> &[Vehicle] {
+        &self.vehicles
+    }
+
+    /// The vehicle with this id.
+    pub fn vehicle(&self, id: VehicleId) -> &Vehicle {
+        &self.vehicles[id.0 as usize]
+    }
+
+    pub(crate) fn vehicle_mut(&mut self, id: VehicleId) -> &mut Vehicle {
+        self.scene_tick = None;
+        &mut self.vehicles[id.0 as usize]
+    }
+
+    pub(crate) fn rng(&mut self) -> &mut ChaCha8Rng {
+        &mut self.rng
+    }
+
+    /// Finds a vehicle by name.
+    pub fn find(&self, name: &str) -> Option<VehicleId> {
+        self.vehicles.iter().position(|v| v.name == name).map(|i| VehicleId(i as u32))
+    }
+
+    /// The world as drivers see it, taken now if the last one is older than this tick.
+    pub fn scene(&mut self) -> &Scene {
+        if self.scene_tick != Some(self.ticks) {
+            self.take_scene();
+        }
+        &self.scene
+    }
+
+    /// The scene as of the last control instant (or the last `scene()` call).
+    pub fn last_scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The parameters the game-theoretic AV plans with for vehicle `id`: its own if it is
+    /// a `gt` car, the defaults otherwise.
+    pub fn av_params(&self, id: VehicleId) -> AvParams {
+        match &self.vehicle(id).driver {
+            Driver::Gt(gt) => gt.params,
+            _ => AvParams::default(),
+        }
+    }
+
+    /// A learner's command for the coming periods.
+    pub fn command_agent(&mut self, id: VehicleId, command: AgentCommand) {
+        self.vehicle_mut(id).driver = Driver::Agent(command);
+    }
+
+    /// Sets the speed vehicle `id`'s driver aims for (m/s).
+    pub fn set_target_speed(&mut self, id: VehicleId, speed: f64) {
+        self.vehicle_mut(id).target_speed = speed;
+    }
+
+    /// Makes `lane` vehicle `id`'s target lane without a path to it (a learner's
+    /// continuous actions steer it themselves).
+    pub fn set_target_lane(&mut self, id: VehicleId, lane: LaneId) {
+        self.vehicle_mut(id).target_lane = lane;
+    }
+
+    /// One physics step.
+    pub fn tick(&mut self) {
+        self.sort_along_road();
+        if self.ticks.is_multiple_of(self.params.substeps_per_control()) {
+            self.scene();
+            self.decide();
+        }
+        self.integrate();
+        self.detect_collisions();
+        self.ticks += 1;
+        self.time = self.ticks as f64 * self.params.physics_dt;
+    }
+
+    /// Advances by the whole physics steps closest to `seconds`.
+    pub fn advance(&mut self, seconds: f64) {
+        let steps = (seconds / self.params.physics_dt).round() as u64;
+        for _ in 0..steps {
+            self.tick();
+        }
+    }
+
+    /// Starts a lane change of vehicle `id` to `lane` along a quintic path.
+    pub fn change_lane(&mut self, id: VehicleId, lane: LaneId) {
+        let time = self.time;
+        let to = self.road().lane_center(lane);
+        let vehicle = self.vehicle_mut(id);
+        let from = vehicle.path.offset_at(time);
+        vehicle.target_lane = lane;
+        vehicle.path = LateralPath::lane_change(from, to, time);
+    }
+
+    /// The lane a vehicle is in now (by its position), or its target lane off the lanes.
+    pub fn current_lane(&self, id: VehicleId) -> LaneId {
+        let vehicle = self.vehicle(id);
+        self.road().lane_at(vehicle.state.s, vehicle.state.d).unwrap_or(vehicle.target_lane)
+    }
+
+    /// Keeps `order` sorted by s: insertion sort, O(n) on the nearly sorted order of
+    /// the last tick.
+    fn sort_along_road(&mut self) {
+        let vehicles = &self.vehicles;
+        let order = &mut self.order;
+        for i in 1..order.len() {
+            let mut j = i;
+            while j > 0 && vehicles[order[j - 1] as usize].state.s > vehicles[order[j] as usize].state.s {
+                order.swap(j - 1, j);
+                j -= 1;
+            }
+        }
+    }
+
+    fn take_scene(&mut self) {
+        let cars = self.vehicles.iter().enumerate().map(|(i, vehicle)| Car {
+            id: VehicleId(i as u32),
+            state: vehicle.state,
+            style: vehicle.style,
+            driver_params: vehicle.driver_params,
+            lane: vehicle.target_lane,
+            target_lane: vehicle.target_lane,
+            target_speed: vehicle.target_speed,
+            accel: vehicle.command.accel,
+            preview: vehicle.command.preview,
+            status: vehicle.status,
+            driver: vehicle.driver_kind(),
+            decided: None,
+        });
+        self.scene.refresh(self.time, cars);
+        self.scene_tick = Some(self.ticks);
+    }
+
+    /// Every driver picks its command for the coming control period from the scene:
+    /// first everyone but the game-theoretic followers, then the followers, who read
+    /// their leaders' decisions of this period. Then every decision is applied.
+    fn decide(&mut self) {
+        let mut decisions = std::mem::take(&mut self.decisions);
+        decisions.clear();
+        for index in 0..self.vehicles.len() {
+            let decision = if self.is_follower(index) { Decision::Accel(0.0) } else { self.decide_one(index) };
+            if let Some((accel, change)) = self.announced(index, &decision) {
+                self.scene.record_decision(VehicleId(index as u32), accel, change);
+            }
+            decisions.push(decision);
+        }
+        for (index, decision) in decisions.iter_mut().enumerate() {
+            if self.is_follower(index) {
+                *decision = self.decide_one(index);
+            }
+        }
+        for (index, decision) in decisions.drain(..).enumerate() {
+            self.apply(VehicleId(index as u32), decision);
+        }
+        self.decisions = decisions;
+    }
+
+    fn is_follower(&self, index: usize) -> bool {
+        let vehicle = &self.vehicles[index];
+        vehicle.status == Status::Driving && matches!(&vehicle.driver, Driver::Gt(gt) if gt.role == Role::Follower)
+    }
+
+    fn decide_one(&self, index: usize) -> Decision {
+        let id = VehicleId(index as u32);
+        let vehicle = &self.vehicles[index];
+        let scene = &self.scene;
+        match (vehicle.status, &vehicle.driver) {
+            (Status::Crashed, _) => Decision::Accel(-self.idm.accel_limit),
+            (Status::OffRoad | Status::Exited, _) => Decision::Accel(0.0),
+            (Status::Driving, Driver::Agent(AgentCommand::Direct(command))) => Decision::Accel(command.accel),
+            (Status::Driving, Driver::Agent(AgentCommand::Track)) => {
+                Decision::Accel(traffic::track_speed(&self.idm, scene.car(id)))
+            }
+            (Status::Driving, Driver::Idm) => {
+                let may_change_lanes = self.time - vehicle.last_lane_decision >= self.idm.lane_change_period - 1e-9
+                    && vehicle.path.finished(self.time);
+                Decision::Idm(traffic::decide(&self.idm, scene, id, may_change_lanes))
+            }
+            (Status::Driving, Driver::Gt(gt)) => Decision::Gt(Box::new(av::plan(scene, id, gt, None))),
+        }
+    }
+
+    /// What a leader or learner tells the followers it decided: its acceleration and
+    /// the lane change it is making or starts now.
+    fn announced(&self, index: usize, decision: &Decision) -> Option<(f64, LaneChange)> {
+        let car = self.scene.car(VehicleId(index as u32));
+        let under_way = car.lane_change();
+        match (car.driver, decision) {
+            (DriverKind::Agent, Decision::Accel(accel)) => Some((*accel, under_way)),
+            (DriverKind::Gt(Role::Leader), Decision::Gt(step)) => {
+                let decided = step.driver.decision;
+                let change = if under_way != LaneChange::Keep { under_way } else { decided.lane_change };
+                Some((decided.accel, change))
+            }
+            _ => None,
+        }
+    }
+
+    fn apply(&mut self, id: VehicleId, decision: Decision) {
+        let accel = match decision {
+            Decision::Accel(accel) => accel,
+            Decision::Idm(idm) => {
+                if idm.consulted {
+                    self.vehicle_mut(id).last_lane_decision = self.time;
+                }
+                if let Some(lane) = idm.change_to {
+                    self.change_lane(id, lane);
+                }
+                idm.accel
+            }
+            Decision::Gt(step) => {
+                let GtStep { command, change_to, driver } = *step;
+                if let Some(lane) = change_to {
+                    self.change_lane(id, lane);
+                }
+                let vehicle = self.vehicle_mut(id);
+                vehicle.command.preview = command.preview;
+                vehicle.driver = Driver::Gt(Box::new(driver));
+                command.accel
+            }
+        };
+        self.vehicles[id.0 as usize].command.accel = accel;
+    }
+
+    /// Integrates every vehicle on the road over one physics step.
+    fn integrate(&mut self) {
+        let (dt, time) = (self.params.physics_dt, self.time);
+        let road = &self.scene.road;
+        for vehicle in &mut self.vehicles {
+            if !vehicle.on_road() {
+                continue;
+            }
+            if vehicle.status == Status::Crashed && vehicle.state.vx <= 0.0 {
+                continue;
+            }
+            vehicle.command.preview = match vehicle.driver {
+                Driver::Agent(AgentCommand::Direct(command)) => command.preview,
+                Driver::Gt(_) => vehicle.command.preview,
+                _ => vehicle.path.preview(time, vehicle.driver_params.preview_time),
+            };
+            let curvature = road.curvature(vehicle.state.s);
+            let stepper = dynamics::Stepper::new(&self.scene.vehicle, &vehicle.driver_params, dt);
+            vehicle.state = stepper.step(&vehicle.state, vehicle.command, curvature);
+            if vehicle.state.s > road.length() {
+                vehicle.status = Status::Exited;
+            } else if vehicle.status == Status::Driving && road.lane_at(vehicle.state.s, vehicle.state.d).is_none() {
+                vehicle.status = Status::OffRoad;
+            }
+        }
+    }
+
+    /// Oriented-box overlap between vehicles close along the road (a sweep over the
+    /// sorted order: only pairs nearer than one body diagonal in s are tested).
+    fn detect_collisions(&mut self) {
+        let body = self.scene.vehicle;
+        let reach = body.length.hypot(body.width);
+        let mut found = Vec::new();
+        for (k, &i) in self.order.iter().enumerate() {
+            let a = &self.vehicles[i as usize];
+            if !a.on_road() {
+                continue;
+            }
+            for &j in &self.order[k + 1..] {
+                let b = &self.vehicles[j as usize];
+                if b.state.s - a.state.s > reach {
+                    break;
+                }
+                let both_crashed = a.status == Status::Crashed && b.status == Status::Crashed;
+                // A box reaches sideways at most half its width plus half its length times
+                // |sin(heading)| <= |heading|: most neighbours in the next lane fail this.
+                let lateral_reach = body.width + body.length * (a.state.heading.abs() + b.state.heading.abs()) / 2.0;
+                if b.on_road()
+                    && !both_crashed
+                    && (b.state.d - a.state.d).abs() <= lateral_reach
+                    && self.boxes_overlap(a, b)
+                {
+                    found.push(Collision { rear: VehicleId(i), front: VehicleId(j) });
+                }
+            }
+        }
+        for collision in &found {
+            self.vehicles[collision.rear.0 as usize].status = Status::Crashed;
+            self.vehicles[collision.front.0 as usize].status = Status::Crashed;
+        }
+        self.collisions.extend(found);
+    }
+
+    fn boxes_overlap(&self, a: &Vehicle, b: &Vehicle) -> bool {
+        let road = self.road();
+        let pa = road.to_global(a.state.s, a.state.d, a.state.heading);
+        let pb = road.to_global(b.state.s, b.state.d, b.state.heading);
+        let body = self.vehicle_params();
+        let half = (body.length / 2.0, body.width / 2.0);
+        oriented_boxes_overlap((pa.x, pa.y, pa.heading), (pb.x, pb.y, pb.heading), half)
+    }
+}
+
+/// Separating-axis test for two equal rectangles given as (x, y, heading) with half
+/// extents `half` = (half length, half width).
+pub fn oriented_boxes_overlap(a: (f64, f64, f64), b: (f64, f64, f64), half: (f64, f64)) -> bool {
+    let axes = |heading: f64| {
+        let (sin, cos) = heading.sin_cos();
+        [(cos, sin), (-sin, cos)]
+    };
+    let (axes_a, axes_b) = (axes(a.2), axes(b.2));
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let radius = |axis: (f64, f64), own: [(f64, f64); 2]| {
+        half.0 * (own[0].0 * axis.0 + own[0].1 * axis.1).abs() + half.1 * (own[1].0 * axis.0 + own[1].1 * axis.1).abs()
+    };
+    axes_a.iter().chain(axes_b.iter()).all(|&axis| {
+        let distance = (dx * axis.0 + dy * axis.1).abs();
+        distance <= radius(axis, axes_a) + radius(axis, axes_b)
+    })
+}
+
+#[cfg(test)]
+mod tests;

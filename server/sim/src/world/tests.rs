@@ -1,0 +1,193 @@
+use super::*;
+use crate::scenario::{Scenario, builtin};
+
+fn state_bits(world: &World) -> Vec<u64> {
+    world.vehicles().iter().flat_map(|v| v.state.to_array()).map(f64::to_bits).collect()
+}
+
+#[test]
+fn same_seed_same_bits_other_seed_differs() {
+    let scenario = builtin("highway").unwrap().unwrap();
+    let run = |seed| {
+        let mut world = scenario.build(seed);
+        for _ in 0..1000 {
+            world.tick();
+        }
+        world
+    };
+    let (a, b, c) = (run(3), run(3), run(4));
+    assert_eq!(state_bits(&a), state_bits(&b));
+    assert_ne!(state_bits(&a), state_bits(&c));
+}
+
+#[test]
+fn ten_minutes_of_dense_traffic_without_a_collision() {
+    let overrides = [("vehicle.ego_0.driver".to_string(), toml::Value::Table(toml::toml! { kind = "idm" }))];
+    let text = crate::scenario::BUILTIN[2].2;
+    let scenario = Scenario::parse("highway.toml", text, &overrides).unwrap();
+    let mut world = scenario.build(11);
+    let mut lane_changes = 0;
+    let mut lanes: Vec<LaneId> = world.vehicles().iter().map(|v| v.target_lane).collect();
+    let ticks = (600.0 / world.params().physics_dt).round() as usize;
+    for _ in 0..ticks {
+        world.tick();
+        for (lane, vehicle) in lanes.iter_mut().zip(world.vehicles()) {
+            lane_changes += usize::from(*lane != vehicle.target_lane);
+            *lane = vehicle.target_lane;
+        }
+    }
+    assert!(world.collisions().is_empty(), "collisions: {:?}", world.collisions());
+    assert!(
+        world.vehicles().iter().all(|v| matches!(v.status, Status::Driving | Status::Exited)),
+        "someone left the road"
+    );
+    assert!(lane_changes > 20, "MOBIL should have changed lanes, saw {lane_changes}");
+    assert!((world.time() - 600.0).abs() < 1e-6);
+}
+
+#[test]
+fn a_car_that_does_not_brake_hits_a_stopped_one() {
+    let road = Road::straight(1000.0, 2, 4.0, 30.0);
+    let mut world = World::new(road.clone(), WorldParams::default(), 0);
+    let stopped = world.add(Vehicle::new(
+        "stopped",
+        &road,
+        LaneId(0),
+        100.0,
+        0.0,
+        Style::Normal,
+        Driver::Agent(AgentCommand::Track),
+    ));
+    let direct = Driver::Agent(AgentCommand::Direct(Command { accel: 0.0, preview: 0.0 }));
+    let blind = world.add(Vehicle::new("blind", &road, LaneId(0), 20.0, 20.0, Style::Normal, direct));
+    let beside = world.add(Vehicle::new("beside", &road, LaneId(1), 20.0, 20.0, Style::Normal, Driver::Idm));
+    world.vehicle_mut(stopped).target_speed = 0.0;
+    world.advance(6.0);
+    assert_eq!(world.collisions(), vec![Collision { rear: blind, front: stopped }]);
+    assert_eq!(world.vehicle(blind).status, Status::Crashed);
+    assert_eq!(world.vehicle(beside).status, Status::Driving);
+}
+
+#[test]
+fn idm_stops_before_a_lane_end_when_it_cannot_merge() {
+    let road = Road::new(
+        crate::road::Pose { x: 0.0, y: 0.0, heading: 0.0 },
+        vec![crate::road::Section::Straight { length: 500.0 }],
+        4.0,
+        vec![30.0, 30.0],
+        &[(LaneId(1), 150.0)],
+    );
+    let mut world = World::new(road.clone(), WorldParams::default(), 0);
+    let merging = world.add(Vehicle::new("m", &road, LaneId(1), 10.0, 15.0, Style::Normal, Driver::Idm));
+    // A wall of slow cars on the through lane leaves no gap to merge into.
+    for k in 0..40 {
+        world.add(Vehicle::new(
+            &format!("w{k}"),
+            &road,
+            LaneId(0),
+            k as f64 * 6.0,
+            0.0,
+            Style::Normal,
+            Driver::Agent(AgentCommand::Track),
+        ));
+        let last = VehicleId(world.vehicles().len() as u32 - 1);
+        world.vehicle_mut(last).target_speed = 0.0;
+    }
+    world.advance(30.0);
+    let m = world.vehicle(merging);
+    assert_eq!(m.status, Status::Driving);
+    assert!(m.state.s < 150.0 && m.state.vx < 0.5, "s {} v {}", m.state.s, m.state.vx);
+}
+
+#[test]
+fn oriented_boxes() {
+    let half = (2.5, 1.0);
+    assert!(oriented_boxes_overlap((0.0, 0.0, 0.0), (4.9, 0.0, 0.0), half));
+    assert!(!oriented_boxes_overlap((0.0, 0.0, 0.0), (5.1, 0.0, 0.0), half));
+    assert!(!oriented_boxes_overlap((0.0, 0.0, 0.0), (0.0, 2.1, 0.0), half));
+    // Rotated 90 degrees, the long side now reaches across.
+    assert!(oriented_boxes_overlap((0.0, 0.0, 0.0), (0.0, 3.4, std::f64::consts::FRAC_PI_2), half));
+    assert!(
+        !oriented_boxes_overlap((0.0, 0.0, 0.0), (3.6, 0.0, 0.3), half)
+            || 3.6 < 2.5 + 2.5 * 0.3f64.cos() + 0.3f64.sin()
+    );
+}
+
+/// Every vehicle's state bits after each of `ticks` ticks, by name.
+fn trajectories(mut world: World, ticks: usize) -> std::collections::BTreeMap<String, Vec<u64>> {
+    let mut out: std::collections::BTreeMap<String, Vec<u64>> = std::collections::BTreeMap::new();
+    for _ in 0..ticks {
+        world.tick();
+        for vehicle in world.vehicles() {
+            let bits = vehicle.state.to_array().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            out.entry(vehicle.name.clone()).or_default().extend(bits);
+        }
+    }
+    out
+}
+
+/// `text` with its `[[vehicle]]` blocks in the order `order` gives.
+fn permuted(text: &str, order: &dyn Fn(usize) -> Vec<usize>) -> String {
+    let mut table: toml::Table = text.parse().unwrap();
+    let Some(toml::Value::Array(vehicles)) = table.remove("vehicle") else { panic!("no [[vehicle]] blocks") };
+    let reordered: Vec<toml::Value> = order(vehicles.len()).into_iter().map(|i| vehicles[i].clone()).collect();
+    // A file with one [[vehicle]] block (highway.toml: the rest is generated traffic)
+    // has no other order.
+    assert!(vehicles.len() < 2 || reordered != vehicles, "the permutation must change the order");
+    table.insert("vehicle".into(), toml::Value::Array(reordered));
+    toml::to_string(&table).unwrap()
+}
+
+fn gt_driver(role: &str) -> toml::Value {
+    let mut driver = toml::Table::new();
+    driver.insert("kind".into(), "gt".into());
+    driver.insert("game".into(), "stackelberg".into());
+    driver.insert("role".into(), role.into());
+    toml::Value::Table(driver)
+}
+
+#[test]
+fn the_order_of_vehicles_in_a_file_changes_no_trajectory() {
+    let reversed = |n: usize| (0..n).rev().collect::<Vec<_>>();
+    let rotated = |n: usize| (1..n).chain([0]).collect::<Vec<_>>();
+    // Every shipped file as it is, and the paper's two scenarios with a Stackelberg
+    // leader and its followers: the case where file order used to decide who saw whom.
+    let paper_drivers = |names: &[&str]| {
+        let mut overrides = vec![("vehicle.ec_0.driver".to_string(), gt_driver("leader"))];
+        overrides.extend(names.iter().map(|name| (format!("vehicle.{name}.driver"), gt_driver("follower"))));
+        overrides
+    };
+    type Overrides = Vec<(String, toml::Value)>;
+    let mut cases: Vec<(&str, &str, Overrides)> =
+        crate::scenario::BUILTIN.iter().map(|(_, file, text)| (*file, *text, vec![])).collect();
+    cases.push(("merge.toml", crate::scenario::BUILTIN[0].2, paper_drivers(&["ac"])));
+    cases.push(("overtake.toml", crate::scenario::BUILTIN[1].2, paper_drivers(&["ac1", "ac2"])));
+    for (file, text, overrides) in &cases {
+        let build = |text: &str| Scenario::parse(file, text, overrides).unwrap().build(5);
+        let expected = trajectories(build(text), 1000);
+        assert!(expected.len() >= 2, "{file}");
+        for order in [&reversed as &dyn Fn(usize) -> Vec<usize>, &rotated] {
+            let got = trajectories(build(&permuted(text, order)), 1000);
+            assert!(got == expected, "{file} with overrides {overrides:?}: a trajectory depends on the file order");
+        }
+    }
+}
+
+#[test]
+fn a_stackelberg_follower_answers_its_leaders_decision_of_this_period() {
+    // The merge with a Stackelberg leader (EC) and follower (AC): in the first period the
+    // follower reads what the leader decided in that same period, whichever comes first.
+    let overrides = vec![
+        ("vehicle.ec_0.driver".to_string(), gt_driver("leader")),
+        ("vehicle.ac.driver".to_string(), gt_driver("follower")),
+    ];
+    let text = crate::scenario::BUILTIN[0].2;
+    let mut world = Scenario::parse("merge.toml", text, &overrides).unwrap().build(0);
+    world.tick();
+    let (ec, ac) = (world.find("ec_0").unwrap(), world.find("ac").unwrap());
+    let scene = world.last_scene();
+    let Driver::Gt(leader) = &world.vehicle(ec).driver else { panic!("ec_0 is gt") };
+    let announced = scene.car(ec).decided.expect("the leader announced its decision");
+    assert_eq!(announced.0, leader.decision.accel);
+    assert!(scene.car(ac).decided.is_none(), "followers announce nothing");
+}

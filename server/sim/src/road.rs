@@ -175,11 +175,6 @@ impl Road {
         self.length
     }
 
-    /// The sections of the reference line.
-    pub fn sections(&self) -> &[Section] {
-        &self.sections
-    }
-
     /// Whether `lane` exists on this road.
     pub fn has_lane(&self, lane: i64) -> bool {
         lane >= 0 && (lane as usize) < self.lane_count()

@@ -82,7 +82,7 @@ pub struct Car {
 
 /// The IDM acceleration of `ego` behind `leader` (none: free road), clipped to the limit;
 /// cars are `length` long.
-pub fn idm_accel(params: &IdmParams, length: f64, ego: Car, leader: Option<Car>) -> f64 {
+fn idm_accel(params: &IdmParams, length: f64, ego: Car, leader: Option<Car>) -> f64 {
     let free = 1.0 - (ego.speed.max(0.0) / ego.target_speed.max(1e-3)).powf(params.exponent);
     let interaction = leader.map_or(0.0, |leader| {
         let gap = (leader.s - ego.s).max(1e-3);
@@ -97,7 +97,7 @@ pub fn idm_accel(params: &IdmParams, length: f64, ego: Car, leader: Option<Car>)
 
 /// The cars around a candidate lane: the nearest ahead and behind.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Gap {
+struct Gap {
     /// The nearest car ahead, if any (a lane end counts as a stopped car).
     pub leader: Option<Car>,
     /// The nearest car behind, if any.
@@ -107,7 +107,7 @@ pub struct Gap {
 /// MOBIL: the incentive of moving `ego` from `current` to `target`, or `None` when the
 /// change is unsafe (the new follower would brake harder than b_safe, or the cars would
 /// overlap). The caller changes lanes when the incentive exceeds `lane_change_gain`.
-pub fn mobil_incentive(params: &IdmParams, ego: Car, length: f64, current: Gap, target: Gap) -> Option<f64> {
+fn mobil_incentive(params: &IdmParams, ego: Car, length: f64, current: Gap, target: Gap) -> Option<f64> {
     let overlaps = |other: Option<Car>| other.is_some_and(|other| (other.s - ego.s).abs() < length);
     if overlaps(target.leader) || overlaps(target.follower) {
         return None;

@@ -13,7 +13,7 @@ mod reward;
 use arena_protocol::InfoValue;
 use arena_protocol::{
     Action, ActionType, CreateOptions, EnvSpecs, ErrorCode, ErrorReply, ExpertGame, Frame, Info, Observation,
-    ObservationKind, OptionValue, RenderMode, Space,
+    ObservationKind, OptionValue, RenderMode,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -117,13 +117,9 @@ impl Env {
         })
     }
 
-    /// Simulated seconds per step.
-    pub fn dt(&self) -> f64 {
-        self.scenario.step_dt
-    }
-
     /// The world, once reset.
-    pub fn world(&self) -> Option<&World> {
+    #[cfg(test)]
+    pub(crate) fn world(&self) -> Option<&World> {
         self.world.as_ref()
     }
 
@@ -254,11 +250,6 @@ impl Env {
             RenderMode::RgbArray => render::rgb(world, focus, self.render_size),
             RenderMode::Ansi => Frame::Ansi(render::ansi(world, focus)),
         })
-    }
-
-    /// The action space of every agent (the same Space the specs list).
-    pub fn action_space(&self, agent: &str) -> Option<Space> {
-        self.agents.iter().find(|a| a.name == agent).map(|a| action::space(a.action))
     }
 }
 

@@ -100,7 +100,7 @@ impl Mul<f64> for CostComponents {
 /// Delta s of eq. (11c)/(12c): the centre distance less l_v, one car length
 /// (`VehicleParams::length`); negative when the cars' footprints overlap.
 #[inline]
-pub fn separation(car_length: f64, a: Kinematics, b: Kinematics) -> f64 {
+pub(crate) fn separation(car_length: f64, a: Kinematics, b: Kinematics) -> f64 {
     let (ds, dd) = (a.s - b.s, a.d - b.d);
     (ds * ds + dd * dd).sqrt() - car_length // eq. (11c), (12c)
 }

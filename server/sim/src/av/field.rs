@@ -80,7 +80,7 @@ pub struct Line {
 
 /// Eq. (20): the field of one obstacle at (s, d).
 #[inline]
-pub fn obstacle_field(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> f64 {
+pub(crate) fn obstacle_field(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> f64 {
     let (sin, cos) = oc.heading.sin_cos();
     let (ds, dd) = (s - oc.s, d - oc.d);
     let x = cos * ds + sin * dd; // X-hat
@@ -96,7 +96,7 @@ pub fn obstacle_field(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> f64 {
 
 /// Eq. (21): the field of a line at `distance` (m) from it, for a car `width` wide (W).
 #[inline]
-pub fn road_field(p: &FieldParams, width: f64, peak: f64, distance: f64) -> f64 {
+pub(crate) fn road_field(p: &FieldParams, width: f64, peak: f64, distance: f64) -> f64 {
     peak * (-distance + p.safety_threshold + 0.5 * width).exp() // eq. (21)
 }
 

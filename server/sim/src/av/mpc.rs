@@ -136,7 +136,7 @@ pub struct Qp {
 
 /// Builds the condensed QP: predicts the outputs of eq. (25b) as affine functions of the
 /// increments and sums eq. (26).
-pub fn build_qp(problem: &MpcProblem, params: &MpcParams) -> Qp {
+pub(crate) fn build_qp(problem: &MpcProblem, params: &MpcParams) -> Qp {
     let n = params.control_horizon.max(1);
     let u_prev = problem.previous_preview.clamp(problem.preview_bounds.0, problem.preview_bounds.1);
     let command = Command { accel: problem.accel, preview: u_prev };

@@ -156,12 +156,12 @@ pub struct CreateOptions {
     pub render_size: Option<(u32, u32)>,
     /// Add to every agent's info what the built-in game-theoretic AV would do in its
     /// place, deciding with this game (`expert_action`, `expert_accel`, `expert_sigma`).
-    pub expert: Option<ExpertGame>,
+    pub expert: Option<Game>,
 }
 
 /// The game the built-in AV plays when asked for `expert` infos.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum ExpertGame {
+pub enum Game {
     /// Nash equilibrium, eq. (15)-(16).
     Nash,
     /// Stackelberg equilibrium, eq. (17)-(18).
@@ -527,7 +527,7 @@ mod tests {
                     observation: Some(ObservationKind::KinematicsWithMask),
                     max_cycles: Some(9),
                     render_size: Some((10, 20)),
-                    expert: Some(ExpertGame::Stackelberg),
+                    expert: Some(Game::Stackelberg),
                 },
             },
             RequestBody::CreateEnv {
@@ -535,7 +535,7 @@ mod tests {
                 options: CreateOptions {
                     action_type: Some(ActionType::Meta),
                     observation: Some(ObservationKind::Kinematics),
-                    expert: Some(ExpertGame::Nash),
+                    expert: Some(Game::Nash),
                     ..CreateOptions::default()
                 },
             },

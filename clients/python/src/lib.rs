@@ -11,7 +11,7 @@ use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSo
 use arena_protocol::keys::DEFAULT_PREFIX;
 use arena_protocol::session::{ConnectionFlags, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
-    Action, ActionType, ExpertGame, Frame, Info, InfoValue, Observation, ObservationKind, RenderMode, Space, StepReply,
+    Action, ActionType, Frame, Game, Info, InfoValue, Observation, ObservationKind, RenderMode, Space, StepReply,
     Tensor, TensorData,
 };
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
@@ -128,8 +128,8 @@ impl Client {
         };
         let expert = match expert.as_deref() {
             None => None,
-            Some("nash") => Some(ExpertGame::Nash),
-            Some("stackelberg") => Some(ExpertGame::Stackelberg),
+            Some("nash") => Some(Game::Nash),
+            Some("stackelberg") => Some(Game::Stackelberg),
             Some(other) => {
                 return Err(PyValueError::new_err(format!("expert must be 'nash' or 'stackelberg', not {other:?}")));
             }

@@ -4,7 +4,7 @@
 //! series of Figs. 8, 9, 12, 13. `arena paper` and the tests both run through here.
 //!
 //! ```
-//! use arena_sim::av::Game;
+//! use arena_sim::gt::Game;
 //! use arena_sim::dynamics::Style;
 //! use arena_paper::{PaperOptions, PaperScenario, run};
 //!
@@ -20,8 +20,8 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use arena_sim::av::{CostComponents, Game, stage_cost};
 use arena_sim::dynamics::Style;
+use arena_sim::gt::{CostComponents, Game, stage_cost};
 use arena_sim::road::LaneChange;
 use arena_sim::scenario::{BUILTIN, Scenario, ScenarioError};
 use arena_sim::world::{Driver, Status, VehicleId, World};
@@ -120,7 +120,7 @@ pub struct Record {
     pub lane_change: LaneChange,
     /// Whether any two cars collided or EC left the road.
     pub collision: bool,
-    /// RMS over the run of EC's three cost components (`av::stage_cost`).
+    /// RMS over the run of EC's three cost components (`gt::stage_cost`).
     pub rms_cost: CostComponents,
     /// Decisions of the run's game-theoretic cars taken without a pure Nash equilibrium
     /// (they then keep their current lane decision).
@@ -205,7 +205,7 @@ pub fn run_world(
     let substeps = world.params().substeps_per_control();
     let periods = (options.duration.unwrap_or(scenario.duration()) / world.params().control_dt).round() as usize;
     let mut samples = Vec::with_capacity(periods);
-    let params = world.av_params(ec);
+    let params = world.gt_params(ec);
     for _ in 0..periods {
         let (t, speeds, gaps, d) = observe(&world, &ids);
         world.tick(); // decides at t

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use crate::{PaperOptions, PaperScenario, Record, Trace};
 use anyhow::Context;
-use arena_sim::av::Game;
 use arena_sim::dynamics::Style;
+use arena_sim::gt::Game;
 use arena_sim::road::LaneChange;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};

@@ -5,8 +5,8 @@
 use std::sync::OnceLock;
 
 use arena_paper::{self as paper, PaperOptions, PaperScenario, Record, Trace};
-use arena_sim::av::Game;
 use arena_sim::dynamics::Style;
+use arena_sim::gt::Game;
 use arena_sim::road::LaneChange;
 use arena_sim::scenario::BUILTIN;
 

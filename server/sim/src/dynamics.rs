@@ -70,7 +70,7 @@ impl VehicleParams {
     }
 }
 
-/// A driving style of Table I (driver) and Table III (cost weights, see `av`).
+/// A driving style of Table I (driver) and Table III (cost weights, see `gt`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Style {

@@ -5,11 +5,11 @@
 //! server (`arena-server`) and the paper harness (`arena-paper`) build on this crate.
 //!
 //! The modules follow the data, one concern each:
-//! `road` -> `dynamics` -> `scene` -> `traffic` / `av` -> `world` -> `scenario`.
+//! `road` -> `dynamics` -> `scene` -> `traffic` / `gt` -> `world` -> `scenario`.
 #![warn(missing_docs)]
 
-pub mod av;
 pub mod dynamics;
+pub mod gt;
 pub mod road;
 pub mod scenario;
 pub mod scene;

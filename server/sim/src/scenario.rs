@@ -8,8 +8,8 @@ use std::path::Path;
 use rand::RngExt;
 use serde::Deserialize;
 
-use crate::av::{AvParams, Game, GtDriver};
 use crate::dynamics::{LateralPath, Style, VehicleParams};
+use crate::gt::{Game, GtDriver, GtParams};
 use crate::road::{LaneId, Pose, Road, Section};
 use crate::scene::Role;
 use crate::world::{AgentCommand, Driver, Vehicle, World, WorldParams};
@@ -279,7 +279,7 @@ pub enum DriverSpec {
     Agent(ActionKind),
     /// IDM + MOBIL.
     Idm,
-    /// The game-theoretic AV of `av`.
+    /// The game-theoretic AV of `gt`.
     Gt {
         /// Nash or Stackelberg.
         game: Game,
@@ -365,7 +365,7 @@ impl Scenario {
                 DriverSpec::Agent(_) => Driver::Agent(AgentCommand::Track),
                 DriverSpec::Idm => Driver::Idm,
                 DriverSpec::Gt { game, role, follower_tolerance } => {
-                    let mut params = AvParams::default();
+                    let mut params = GtParams::default();
                     params.decision.game.follower_tolerance = follower_tolerance;
                     Driver::Gt(Box::new(GtDriver::new(game, role, params)))
                 }

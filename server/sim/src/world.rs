@@ -11,8 +11,8 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::av::{self, AvParams, GtDriver, GtStep};
 use crate::dynamics::{self, Command, DriverParams, LateralPath, Style, VehicleParams, VehicleState};
+use crate::gt::{self, GtDriver, GtParams, GtStep};
 use crate::road::{LaneChange, LaneId, Road};
 use crate::scene::{Car, DriverKind, Role, Scene};
 use crate::traffic::{self, IdmDecision, IdmParams};
@@ -48,7 +48,7 @@ pub enum Driver {
     Agent(AgentCommand),
     /// IDM + MOBIL background traffic.
     Idm,
-    /// The paper's game-theoretic AV (`av`): its game, role, constants and memory.
+    /// The paper's game-theoretic AV (`gt`): its game, role, constants and memory.
     Gt(Box<GtDriver>),
 }
 
@@ -260,10 +260,10 @@ impl World {
 
     /// The parameters the game-theoretic AV plans with for vehicle `id`: its own if it is
     /// a `gt` car, the defaults otherwise.
-    pub fn av_params(&self, id: VehicleId) -> AvParams {
+    pub fn gt_params(&self, id: VehicleId) -> GtParams {
         match &self.vehicle(id).driver {
             Driver::Gt(gt) => gt.params,
-            _ => AvParams::default(),
+            _ => GtParams::default(),
         }
     }
 
@@ -398,7 +398,7 @@ impl World {
                     && vehicle.path.finished(self.time);
                 Decision::Idm(traffic::decide(&self.idm, scene, id, may_change_lanes))
             }
-            (Status::Driving, Driver::Gt(gt)) => Decision::Gt(Box::new(av::plan(scene, id, gt, None))),
+            (Status::Driving, Driver::Gt(gt)) => Decision::Gt(Box::new(gt::plan(scene, id, gt, None))),
         }
     }
 

@@ -12,13 +12,13 @@ mod reward;
 
 use arena_protocol::InfoValue;
 use arena_protocol::{
-    Action, ActionType, CreateOptions, EnvSpecs, ErrorCode, ErrorReply, ExpertGame, Frame, Info, Observation,
-    ObservationKind, OptionValue, RenderMode,
+    Action, ActionType, CreateOptions, EnvSpecs, ErrorCode, ErrorReply, Frame, Info, Observation, ObservationKind,
+    OptionValue, RenderMode,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use arena_sim::av::{Game, expert_decision};
+use arena_sim::gt::{Game, expert_decision};
 use arena_sim::scenario::{ActionKind, DriverSpec, Scenario};
 use arena_sim::world::{Status, VehicleId, World};
 
@@ -107,8 +107,8 @@ impl Env {
             max_cycles,
             render_size,
             expert: options.expert.map(|game| match game {
-                ExpertGame::Nash => Game::Nash,
-                ExpertGame::Stackelberg => Game::Stackelberg,
+                arena_protocol::Game::Nash => Game::Nash,
+                arena_protocol::Game::Stackelberg => Game::Stackelberg,
             }),
             seeds: ChaCha8Rng::seed_from_u64(entropy),
             world: None,
@@ -259,7 +259,7 @@ impl Env {
 /// ±0.5 m/s^2), and the game's raw `expert_accel` and `expert_sigma`.
 fn add_expert(expert: Option<Game>, info: &mut Info, world: &mut World, agent: &AgentSlot) {
     let Some(game) = expert else { return };
-    let params = world.av_params(agent.vehicle);
+    let params = world.gt_params(agent.vehicle);
     let decision = expert_decision(world.scene(), agent.vehicle, game, &params);
     let sigma = decision.lane_change.sigma();
     let action = match agent.action {

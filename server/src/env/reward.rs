@@ -5,7 +5,7 @@
 
 use arena_protocol::{Info, InfoValue};
 
-use arena_sim::av::{CostComponents, stage_cost};
+use arena_sim::gt::{CostComponents, stage_cost};
 use arena_sim::world::{Status, VehicleId, World};
 
 /// Subtracted from the reward on the step an agent crashes. Chosen here to exceed what
@@ -34,7 +34,7 @@ pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<S
             samples += 1;
             for (sum, &id) in sums.iter_mut().zip(vehicles) {
                 if world.vehicle(id).status == Status::Driving {
-                    let params = world.av_params(id);
+                    let params = world.gt_params(id);
                     let cost = stage_cost(world.scene(), id, &params);
                     sum.components.safety += cost.safety;
                     sum.components.comfort += cost.comfort;

@@ -155,7 +155,7 @@ fn renders_show_the_road() {
 
 #[test]
 fn expert_infos_say_what_the_built_in_av_would_do() {
-    let options = CreateOptions { expert: Some(arena_protocol::ExpertGame::Stackelberg), ..CreateOptions::default() };
+    let options = CreateOptions { expert: Some(arena_protocol::Game::Stackelberg), ..CreateOptions::default() };
     let mut env = env("merge", options);
     let value = |info: &Info, key: &str| info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
     let reset = env.reset(Some(0), &[]);

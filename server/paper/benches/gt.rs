@@ -4,14 +4,14 @@
 //! gives the means; a second pass times single calls and prints p50 / p99 / max, the
 //! figures docs/performance.md records (target: decision + MPC p99 <= 1 ms).
 //!
-//! Run: `cargo bench -p arena-paper --bench av`
+//! Run: `cargo bench -p arena-paper --bench gt`
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use arena_paper::{PaperOptions, PaperScenario, world};
-use arena_sim::av::{AvParams, Game, GtDriver, Mpc, plan, plan_motion, situation};
 use arena_sim::dynamics::Style;
+use arena_sim::gt::{Game, GtDriver, GtParams, Mpc, plan, plan_motion, situation};
 use arena_sim::scene::{Scene, VehicleId};
 use arena_sim::world::Driver;
 use criterion::Criterion;
@@ -26,12 +26,12 @@ fn scenario_b(game: Game) -> (Scene, VehicleId, GtDriver) {
 }
 
 fn decision(scene: &Scene, ec: VehicleId, game: Game) -> f64 {
-    let params = AvParams::default();
+    let params = GtParams::default();
     situation(scene, ec, &params).0.decide(game, &params.decision).accel
 }
 
 fn bench(c: &mut Criterion) {
-    let mut group = c.benchmark_group("av");
+    let mut group = c.benchmark_group("gt");
     let (scene, ec, gt) = scenario_b(Game::Nash);
     group.bench_function("nash_decision", |b| b.iter(|| decision(black_box(&scene), ec, Game::Nash)));
     group.bench_function("stackelberg_decision", |b| b.iter(|| decision(black_box(&scene), ec, Game::Stackelberg)));

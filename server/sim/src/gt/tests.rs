@@ -7,7 +7,7 @@ use crate::world::{AgentCommand, Driver, Status, Vehicle, VehicleId, World, Worl
 
 /// What the AV would decide in vehicle `id`'s place, with the vehicle's own constants.
 fn expert(world: &mut World, id: VehicleId, game: Game) -> Decision {
-    let params = world.av_params(id);
+    let params = world.gt_params(id);
     expert_decision(world.scene(), id, game, &params)
 }
 
@@ -18,7 +18,7 @@ fn plan_of(world: &mut World, id: VehicleId) -> GtStep {
 }
 
 fn cost_now(world: &mut World, id: VehicleId) -> CostComponents {
-    let params = world.av_params(id);
+    let params = world.gt_params(id);
     stage_cost(world.scene(), id, &params)
 }
 
@@ -108,7 +108,7 @@ fn merge_road(lane_end: f64) -> Road {
 }
 
 fn gt(game: Game, role: Role) -> Driver {
-    Driver::Gt(Box::new(GtDriver::new(game, role, AvParams::default())))
+    Driver::Gt(Box::new(GtDriver::new(game, role, GtParams::default())))
 }
 
 fn world_with(road: Road, cars: &[(&str, u32, f64, f64, Style, Driver)]) -> World {
@@ -202,7 +202,7 @@ fn a_broken_state_falls_back_to_braking_in_lane_and_says_so() {
     let step = plan_of(&mut world, VehicleId(0));
     assert!(step.driver.diagnostics.fallback.as_deref().is_some_and(|m| m.contains("not finite")));
     assert_eq!(step.driver.diagnostics.fallbacks, 1);
-    assert_eq!(step.command.accel, -AvParams::default().gt.fallback_brake);
+    assert_eq!(step.command.accel, -GtParams::default().interaction.fallback_brake);
     assert_eq!(step.command.preview, world.road().lane_center(LaneId(1)));
     assert_eq!(step.change_to, None);
 }
@@ -231,7 +231,7 @@ fn gt_worlds_are_deterministic_and_plain_data() {
 #[test]
 fn defaults_are_the_documented_ones() {
     // docs/parameters.md, "Game-theoretic AV": change both together.
-    let p = AvParams::default();
+    let p = GtParams::default();
     let c = p.decision.costs;
     assert_eq!(
         [c.kappa_v_log, c.kappa_s_log, c.kappa_v_lat, c.kappa_s_lat, c.kappa_ax, c.kappa_ay, c.epsilon],
@@ -256,7 +256,10 @@ fn defaults_are_the_documented_ones() {
         [m.field_weight, m.lateral_weight, m.heading_weight, m.rate_weight, m.max_step, m.preview_margin, m.min_speed],
         [20.0, 1.0, 30.0, 10.0, 0.15, 2.0, 2.0]
     );
-    assert_eq!((p.gt.interaction_range, p.gt.lane_end_time, p.gt.fallback_brake), (60.0, 8.0, 3.0));
+    assert_eq!(
+        (p.interaction.interaction_range, p.interaction.lane_end_time, p.interaction.fallback_brake),
+        (60.0, 8.0, 3.0)
+    );
 }
 
 #[test]
@@ -289,13 +292,13 @@ fn the_expert_of_a_gt_car_is_its_own_planned_decision_with_its_own_tolerance() {
     let text = crate::scenario::BUILTIN[0].2;
     let mut world = crate::scenario::Scenario::parse("merge.toml", text, &overrides).unwrap().build(0);
     let ec = world.find("ec_0").unwrap();
-    assert_eq!(world.av_params(ec).decision.game.follower_tolerance, 2.0);
+    assert_eq!(world.gt_params(ec).decision.game.follower_tolerance, 2.0);
     let mut differs = false;
     for _ in 0..60 {
         let own = expert(&mut world, ec, Game::Stackelberg);
         let planned = plan_of(&mut world, ec).driver.decision;
         assert_eq!(own, planned);
-        let defaults = AvParams::default();
+        let defaults = GtParams::default();
         differs |= expert_decision(world.scene(), ec, Game::Stackelberg, &defaults) != planned;
         world.advance(world.params().control_dt);
     }

@@ -6,19 +6,19 @@
 //! the world's `Scene` and returns a `GtStep` that the world applies. The env asks two
 //! questions of any vehicle, learner or not: [`stage_cost`] (eq. 10–14 in its current
 //! situation) and [`expert_decision`] (what this AV would decide in its place), each with
-//! the vehicle's own constants (`World::av_params`).
+//! the vehicle's own constants (`World::gt_params`).
 //!
 //! One concern per file: `styles` (Table III), `costs` (eq. 9–14), `prediction` (motion
 //! over the decision horizon), `games` (eq. 15–18), `field` (eq. 19–21), `mpc` (eq.
 //! 22–29), `driver` (reading the scene, the follower role, the fallback).
 //!
 //! ```
-//! use arena_sim::av::{Game, expert_decision, stage_cost};
+//! use arena_sim::gt::{Game, expert_decision, stage_cost};
 //! use arena_sim::scenario::builtin;
 //!
 //! let mut world = builtin("overtake").unwrap().unwrap().build(0);
 //! let ec = world.find("ec_0").unwrap();
-//! let params = world.av_params(ec);
+//! let params = world.gt_params(ec);
 //! let decision = expert_decision(world.scene(), ec, Game::Stackelberg, &params);
 //! assert!(decision.accel.is_finite());
 //! let j = stage_cost(world.scene(), ec, &params).weighted(world.vehicle(ec).style);
@@ -35,7 +35,7 @@ mod styles;
 
 pub use costs::{CostComponents, CostParams};
 pub use driver::{
-    AvParams, Diagnostics, GtDriver, GtParams, GtStep, decide, expert_decision, plan, plan_motion, situation,
+    Diagnostics, GtDriver, GtParams, GtStep, InteractionParams, decide, expert_decision, plan, plan_motion, situation,
     stage_cost,
 };
 pub use field::{Field, FieldParams, Line, Obstacle};

@@ -20,7 +20,7 @@ use crate::scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 
 /// How a `gt` vehicle reads the world and what it does when planning fails.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct GtParams {
+pub struct InteractionParams {
     /// Cars farther than this along the road (m) are not adjacent cars of a game. 60,
     /// chosen here: two seconds of closing at 30 m/s.
     pub interaction_range: f64,
@@ -32,15 +32,15 @@ pub struct GtParams {
     pub fallback_brake: f64,
 }
 
-impl Default for GtParams {
+impl Default for InteractionParams {
     fn default() -> Self {
-        GtParams { interaction_range: 60.0, lane_end_time: 8.0, fallback_brake: 3.0 }
+        InteractionParams { interaction_range: 60.0, lane_end_time: 8.0, fallback_brake: 3.0 }
     }
 }
 
-/// Every constant of the game-theoretic AV.
+/// Every constant of the game-theoretic (`gt`) driver.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct AvParams {
+pub struct GtParams {
     /// Costs, prediction, games.
     pub decision: DecisionParams,
     /// Eq. (19)–(21).
@@ -48,7 +48,7 @@ pub struct AvParams {
     /// Eq. (22)–(29).
     pub mpc: MpcParams,
     /// Reading the world; the fallback.
-    pub gt: GtParams,
+    pub interaction: InteractionParams,
 }
 
 /// What the driver reports about its last plan.
@@ -73,7 +73,7 @@ pub struct GtDriver {
     /// Leader or follower.
     pub role: Role,
     /// Its constants.
-    pub params: AvParams,
+    pub params: GtParams,
     /// The last decision.
     pub decision: Decision,
     /// u(k-1): the preview point of the last plan, once there is one (m).
@@ -86,7 +86,7 @@ pub struct GtDriver {
 
 impl GtDriver {
     /// A fresh driver.
-    pub fn new(game: Game, role: Role, params: AvParams) -> GtDriver {
+    pub fn new(game: Game, role: Role, params: GtParams) -> GtDriver {
         GtDriver {
             game,
             role,
@@ -124,7 +124,7 @@ fn speed_limit(scene: &Scene, car: &Car, lane: LaneId) -> f64 {
     scene.road.speed_limit(lane).min(car.target_speed)
 }
 
-fn player(scene: &Scene, car: &Car, lane: LaneId, params: &AvParams) -> Player {
+fn player(scene: &Scene, car: &Car, lane: LaneId, params: &GtParams) -> Player {
     Player {
         now: kinematics(car),
         weights: CostWeights::for_style(car.style),
@@ -138,16 +138,17 @@ fn side_option(
     scene: &Scene,
     id: VehicleId,
     side: LaneChange,
-    params: &AvParams,
+    params: &GtParams,
 ) -> Option<(LaneOption, Option<VehicleId>)> {
     let car = scene.car(id);
     let ego = kinematics(car);
     let lane = scene.lane_beside(car.lane, side)?;
     let ahead = scene.road.lane_end(lane) - ego.s;
-    if scene.road.lane_end(lane) < scene.road.length() && ahead < ego.speed.max(10.0) * params.gt.lane_end_time {
+    if scene.road.lane_end(lane) < scene.road.length() && ahead < ego.speed.max(10.0) * params.interaction.lane_end_time
+    {
         return None;
     }
-    let ac = scene.nearest(lane, ego.s, params.gt.interaction_range, &[id]);
+    let ac = scene.nearest(lane, ego.s, params.interaction.interaction_range, &[id]);
     let adjacent = ac.map(|ac| {
         let others = [id, ac.id];
         let ac_lead = scene.lead_car(lane, ac.state.s, &others).map(lead_kinematics);
@@ -170,7 +171,7 @@ fn side_option(
 }
 
 /// Car `id`'s situation as the EC of a game, and the adjacent car of each side.
-pub fn situation(scene: &Scene, id: VehicleId, params: &AvParams) -> (Situation, [Option<VehicleId>; 2]) {
+pub fn situation(scene: &Scene, id: VehicleId, params: &GtParams) -> (Situation, [Option<VehicleId>; 2]) {
     let car = scene.car(id);
     let keep = LaneOption {
         sigma: 0,
@@ -199,7 +200,7 @@ pub fn situation(scene: &Scene, id: VehicleId, params: &AvParams) -> (Situation,
 /// lane change it is making (target lane against current lane), a_x its commanded
 /// acceleration, a_y its measured lateral acceleration less the road's centripetal
 /// part. Lane ends count as stopped lead cars in eq. (11), as in the games.
-pub fn stage_cost(scene: &Scene, id: VehicleId, params: &AvParams) -> CostComponents {
+pub fn stage_cost(scene: &Scene, id: VehicleId, params: &GtParams) -> CostComponents {
     let c = &params.decision.costs;
     let car = scene.car(id);
     let ego = kinematics(car);
@@ -210,7 +211,7 @@ pub fn stage_cost(scene: &Scene, id: VehicleId, params: &AvParams) -> CostCompon
     let lateral = match sigma {
         0 => 0.0,
         _ => scene
-            .nearest(car.target_lane, ego.s, params.gt.interaction_range, &[id])
+            .nearest(car.target_lane, ego.s, params.interaction.interaction_range, &[id])
             .map_or(0.0, |ac| costs::lateral_safety(c, scene.vehicle.length, ego, kinematics(ac))),
     };
     let centripetal = car.state.vx * car.state.vx * scene.road.curvature(ego.s);
@@ -226,14 +227,14 @@ pub fn stage_cost(scene: &Scene, id: VehicleId, params: &AvParams) -> CostCompon
 
 /// What the built-in AV with constants `params` would decide in car `id`'s place, as
 /// the EC of `game`: its acceleration and lane choice.
-pub fn expert_decision(scene: &Scene, id: VehicleId, game: Game, params: &AvParams) -> Decision {
+pub fn expert_decision(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decision {
     situation(scene, id, params).0.decide(game, &params.decision)
 }
 
 /// The leader or learner in an adjacent lane a follower answers: the nearest within range.
-fn partner(scene: &Scene, id: VehicleId, params: &AvParams) -> Option<VehicleId> {
+fn partner(scene: &Scene, id: VehicleId, params: &GtParams) -> Option<VehicleId> {
     let me = scene.car(id);
-    let range = params.gt.interaction_range;
+    let range = params.interaction.interaction_range;
     let plays = |other: &&Car| {
         other.id != id
             && other.status == Status::Driving
@@ -259,7 +260,7 @@ fn observed(scene: &Scene, id: VehicleId) -> (f64, LaneChange) {
 /// A follower's acceleration: its part of the side game against its partner (Nash), its
 /// best response to the partner's decision of this period (Stackelberg), or, with no
 /// partner in play, the best for itself alone.
-fn follow(scene: &Scene, id: VehicleId, game: Game, params: &AvParams) -> Decision {
+fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decision {
     let alone = || {
         let (mut own, _) = situation(scene, id, params);
         own.sides = [None, None];
@@ -378,7 +379,7 @@ fn fallback(scene: &Scene, id: VehicleId, mut driver: GtDriver, error: &MpcError
     let car = scene.car(id);
     let params = &driver.params;
     let bounds = SpeedBounds { min: params.decision.game.speed_min, max: speed_limit(scene, car, car.lane) };
-    let brake = (-params.gt.fallback_brake).max(params.decision.game.accel_min);
+    let brake = (-params.interaction.fallback_brake).max(params.decision.game.accel_min);
     let accel = prediction::feasible_accel(brake, car.state.vx, bounds, scene.control_dt);
     let preview = scene.road.lane_center(car.lane);
     driver.decision = Decision { accel, lane_change: LaneChange::Keep, exact: false, ..driver.decision };

@@ -1,6 +1,6 @@
 use super::*;
-use crate::av::field::{FieldParams, Obstacle, road_lines};
 use crate::dynamics::Style;
+use crate::gt::field::{FieldParams, Obstacle, road_lines};
 use crate::road::Road;
 
 fn straight_field(road: &Road) -> Field {

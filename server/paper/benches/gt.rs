@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use arena_paper::{PaperOptions, PaperScenario, world};
 use arena_sim::dynamics::Style;
-use arena_sim::gt::{Game, GtDriver, GtParams, Mpc, plan, plan_motion, situation};
+use arena_sim::gt::{Game, GtDriver, GtParams, Mpc, expert_decision, plan, plan_motion};
 use arena_sim::scene::{Scene, VehicleId};
 use arena_sim::world::Driver;
 use criterion::Criterion;
@@ -27,7 +27,7 @@ fn scenario_b(game: Game) -> (Scene, VehicleId, GtDriver) {
 
 fn decision(scene: &Scene, ec: VehicleId, game: Game) -> f64 {
     let params = GtParams::default();
-    situation(scene, ec, &params).0.decide(game, &params.decision).accel
+    expert_decision(scene, ec, game, &params).accel
 }
 
 fn bench(c: &mut Criterion) {

@@ -33,18 +33,16 @@ mod mpc;
 mod prediction;
 mod styles;
 
+// The surface: the driver, its constants, what it decides and reports, and the two
+// questions the env asks. The games, the field and the MPC stay inside.
 pub use costs::{CostComponents, CostParams};
 pub use driver::{
-    Diagnostics, GtDriver, GtParams, GtStep, InteractionParams, decide, expert_decision, plan, plan_motion, situation,
-    stage_cost,
+    Diagnostics, GtDriver, GtParams, GtStep, InteractionParams, decide, expert_decision, plan, plan_motion, stage_cost,
 };
-pub use field::{Field, FieldParams, Line, Obstacle};
-pub use games::{
-    Adjacent, Decision, DecisionParams, Game, GameParams, LaneOption, PayoffTable, Player, Profile, SideGame, Situation,
-};
-pub use mpc::{Mpc, MpcError, MpcParams, MpcProblem, MpcSolution, Qp};
-pub use prediction::lane_change_accel;
-pub use prediction::{Kinematics, PredictionParams, SpeedBounds};
+pub use field::FieldParams;
+pub use games::{Decision, DecisionParams, Game, GameParams};
+pub use mpc::{Mpc, MpcError, MpcParams, MpcSolution};
+pub use prediction::PredictionParams;
 pub use styles::{CostWeights, StyleProfile};
 
 #[cfg(test)]

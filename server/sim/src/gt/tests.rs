@@ -1,3 +1,4 @@
+use super::games::{PayoffTable, Profile, SideGame};
 use super::*;
 use crate::dynamics::Style;
 use crate::road::LaneChange;

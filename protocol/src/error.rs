@@ -42,11 +42,14 @@ pub enum ErrorCode {
     Internal = 13,
     /// 14: an action for an agent that finished its episode, or a step with none live.
     AgentNotLive = 14,
+    /// 15: a reset option the env does not know (the reset options are
+    /// `overrides.<dotted scenario key>`).
+    InvalidOption = 15,
 }
 
 impl ErrorCode {
     /// Every code, in number order.
-    pub const ALL: [ErrorCode; 15] = [
+    pub const ALL: [ErrorCode; 16] = [
         ErrorCode::MalformedRequest,
         ErrorCode::WrongVersion,
         ErrorCode::PayloadTooLarge,
@@ -62,6 +65,7 @@ impl ErrorCode {
         ErrorCode::StaleSequence,
         ErrorCode::Internal,
         ErrorCode::AgentNotLive,
+        ErrorCode::InvalidOption,
     ];
 
     /// The stable number of the code, as on the wire.
@@ -167,7 +171,8 @@ mod tests {
         }
         assert_eq!(ErrorCode::TooManyEnvs.as_u16(), 11);
         assert_eq!(ErrorCode::AgentNotLive.as_u16(), 14);
-        assert!(decode::<ErrorCode>(&[15]).is_err(), "no code 15 yet");
+        assert_eq!(ErrorCode::InvalidOption.as_u16(), 15);
+        assert!(decode::<ErrorCode>(&[16]).is_err(), "no code 16 yet");
     }
 
     #[test]

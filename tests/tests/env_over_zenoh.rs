@@ -79,13 +79,18 @@ async fn every_agent_truncates_at_exactly_max_cycles() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn unknown_option_keys_are_ignored() {
+async fn unknown_reset_options_are_refused_by_name_and_overrides_reach_the_episode() {
     let harness = common::start().await;
     let client = harness.client().await;
     let mut env = harness.env(&client, "merge").await;
     let plain = env.reset(Some(4), vec![]).await.unwrap();
-    let odd = env.reset(Some(4), vec![("no_such_key".into(), OptionValue::Int(3))]).await.unwrap();
-    assert_eq!(plain.observations, odd.observations);
+    let refused = env.reset(Some(4), vec![("no_such_key".into(), OptionValue::Int(3))]).await;
+    assert_eq!(code(refused.clone().map(|_| ())), ErrorCode::InvalidOption);
+    assert!(format!("{:?}", refused.err()).contains("no_such_key"));
+    let moved = vec![("overrides.vehicle.ec_0.speed".into(), OptionValue::Float(23.0))];
+    let changed = env.reset(Some(4), moved).await.unwrap();
+    assert_ne!(plain.observations, changed.observations);
+    assert!(env.step(vec![]).await.is_ok(), "the env serves on after a refused reset");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

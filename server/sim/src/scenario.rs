@@ -5,7 +5,7 @@
 use std::fmt;
 use std::path::Path;
 
-use rand::RngExt;
+use rand::{Rng, RngExt};
 use serde::Deserialize;
 
 use crate::dynamics::{LateralPath, Style, VehicleParams};
@@ -124,6 +124,23 @@ struct ScenarioFile {
     #[serde(default, rename = "vehicle")]
     vehicles: Vec<VehicleFile>,
     traffic: Option<TrafficFile>,
+    #[serde(default)]
+    reward: RewardFile,
+    #[serde(default)]
+    vary: toml::Table,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct RewardFile {
+    cost_scale: f64,
+    crash: Option<f64>,
+}
+
+impl Default for RewardFile {
+    fn default() -> Self {
+        RewardFile { cost_scale: RewardSpec::DEFAULT_COST_SCALE, crash: None }
+    }
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -245,6 +262,18 @@ struct TrafficFile {
     lanes: Option<Vec<i64>>,
     #[serde(default = "default_style")]
     style: Style,
+    gt: Option<GtTrafficFile>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GtTrafficFile {
+    count: u32,
+    game: Game,
+    #[serde(default = "default_style")]
+    style: Style,
+    #[serde(default)]
+    role: Role,
 }
 
 fn default_density() -> f64 {
@@ -303,6 +332,47 @@ pub struct TrafficSpec {
     pub lanes: Vec<LaneId>,
     /// Style of their steering.
     pub style: Style,
+    /// How many of them the game-theoretic AV drives, spread evenly through the traffic
+    /// (every `count / gt.count`-th car), and how.
+    pub gt: Option<GtTraffic>,
+}
+
+/// The game-theoretic cars among random traffic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GtTraffic {
+    /// How many.
+    pub count: u32,
+    /// Nash or Stackelberg.
+    pub game: Game,
+    /// Their style.
+    pub style: Style,
+    /// Leader or follower.
+    pub role: Role,
+}
+
+/// How the env turns the paper's cost J into a reward (docs/rewards.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RewardSpec {
+    /// J_0 of r = J_0 / (J_0 + J): the cost at which a step earns half the most.
+    pub cost_scale: f64,
+    /// The reward of the step an agent crashes or leaves the road; `None`: minus the
+    /// episode length in steps, below any episode without a crash.
+    pub crash: Option<f64>,
+}
+
+impl RewardSpec {
+    /// J_0 by default: about the cost of driving calmly at 5 m/s off the target speed
+    /// in the normal style (docs/rewards.md).
+    pub const DEFAULT_COST_SCALE: f64 = 25.0;
+}
+
+/// One value a scenario draws afresh for each episode.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Variation {
+    /// Uniform between two numbers.
+    Range(f64, f64),
+    /// One of these values, each equally likely.
+    Choose(Vec<toml::Value>),
 }
 
 /// A validated scenario.
@@ -324,7 +394,17 @@ pub struct Scenario {
     pub vehicles: Vec<VehicleSpec>,
     /// Random background traffic, if any.
     pub traffic: Option<TrafficSpec>,
+    /// The reward's constants.
+    pub reward: RewardSpec,
+    /// Values drawn afresh for each episode, by dotted key (`[vary]`).
+    pub vary: Vec<(String, Variation)>,
+    /// Where it came from, to draw episodes: the file name, its text, its overrides.
+    source: (String, String, Vec<(String, toml::Value)>),
 }
+
+/// Draws that may fail validation (two cars placed overlapping, say) are retried this
+/// many times before the episode is refused.
+const EPISODE_DRAWS: usize = 20;
 
 impl Scenario {
     /// Reads and validates a scenario file.
@@ -350,7 +430,36 @@ impl Scenario {
             ScenarioFile::deserialize(toml::Value::Table(table))
         }
         .map_err(|e: toml::de::Error| fail(ScenarioErrorKind::Syntax(e.to_string())))?;
-        raw.validate().map_err(fail)
+        let mut scenario = raw.validate().map_err(fail)?;
+        scenario.source = (file.to_string(), text.to_string(), overrides.to_vec());
+        Ok(scenario)
+    }
+
+    /// The scenario of one episode: its `[vary]` values drawn from `rng`, then `extra`
+    /// overrides applied (the reset's own). With neither, the scenario itself.
+    pub fn episode(&self, rng: &mut impl Rng, extra: &[(String, toml::Value)]) -> Result<Scenario, ScenarioError> {
+        if self.vary.is_empty() && extra.is_empty() {
+            return Ok(self.clone());
+        }
+        let (file, text, overrides) = &self.source;
+        let mut last = None;
+        for _ in 0..EPISODE_DRAWS {
+            let mut all = overrides.clone();
+            all.extend(self.vary.iter().map(|(key, variation)| (key.clone(), variation.draw(rng))));
+            all.extend(extra.iter().cloned());
+            match Scenario::parse(file, text, &all) {
+                Err(error)
+                    if matches!(error.kind, ScenarioErrorKind::Overlap { .. } | ScenarioErrorKind::OffRoad { .. }) =>
+                {
+                    last = Some(error);
+                    if self.vary.is_empty() {
+                        break;
+                    }
+                }
+                other => return other,
+            }
+        }
+        Err(last.unwrap_or_else(|| ScenarioError { file: file.clone(), kind: ScenarioErrorKind::Io("no draw".into()) }))
     }
 
     /// Builds the world at time zero; `seed` drives the random traffic. The named
@@ -388,6 +497,22 @@ impl Scenario {
     }
 }
 
+impl Variation {
+    fn draw(&self, rng: &mut impl Rng) -> toml::Value {
+        match self {
+            Variation::Range(low, high) if low < high => toml::Value::Float(rng.random_range(*low..*high)),
+            Variation::Range(low, _) => toml::Value::Float(*low),
+            Variation::Choose(values) => values[rng.random_range(0..values.len())].clone(),
+        }
+    }
+}
+
+/// Whether car `k` of `count` is one of `gt` game-theoretic ones spread evenly.
+fn is_gt_car(k: u32, count: u32, gt: u32) -> bool {
+    let share = |k: u64| k * u64::from(gt) / u64::from(count.max(1));
+    share(u64::from(k) + 1) > share(u64::from(k))
+}
+
 /// highway-env's `create_random`: each car goes ahead of the frontmost one by
 /// `(12 + v) * exp(-5/40 * lanes) / density * U(0.9, 1.1)`, in a random lane.
 fn place_traffic(world: &mut World, traffic: &TrafficSpec) {
@@ -400,7 +525,13 @@ fn place_traffic(world: &mut World, traffic: &TrafficSpec) {
             world.vehicles().iter().map(|v| v.state.s).fold(None, |m: Option<f64>, s| Some(m.map_or(s, |m| m.max(s))));
         let s = front.unwrap_or(3.0 * offset) + offset * world.rng().random_range(0.9..1.1);
         let name = format!("car{k}");
-        let vehicle = Vehicle::new(&name, world.road(), lane, s, speed, traffic.style, Driver::Idm);
+        let (style, driver) = match traffic.gt {
+            Some(gt) if is_gt_car(k, traffic.count, gt.count) => {
+                (gt.style, Driver::Gt(Box::new(GtDriver::new(gt.game, gt.role, GtParams::default()))))
+            }
+            _ => (traffic.style, Driver::Idm),
+        };
+        let vehicle = Vehicle::new(&name, world.road(), lane, s, speed, style, driver);
         world.add(vehicle);
     }
 }
@@ -458,6 +589,8 @@ impl ScenarioFile {
         let vehicles = self.vehicles.iter().map(|v| v.validate(&road)).collect::<Result<Vec<_>, _>>()?;
         check_names_and_overlaps(&vehicles, &road)?;
         let traffic = self.traffic.map(|t| t.validate(&road)).transpose()?;
+        let reward = self.reward.validate(sim.max_cycles)?;
+        let vary = validate_vary(&self.vary)?;
         Ok(Scenario {
             name: self.name,
             description: self.description,
@@ -467,8 +600,56 @@ impl ScenarioFile {
             max_cycles: sim.max_cycles,
             vehicles,
             traffic,
+            reward,
+            vary,
+            source: Default::default(),
         })
     }
+}
+
+impl RewardFile {
+    fn validate(&self, _max_cycles: u32) -> Result<RewardSpec, ScenarioErrorKind> {
+        let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
+        if !(self.cost_scale.is_finite() && self.cost_scale > 0.0) {
+            return Err(invalid("reward.cost_scale", format!("must be a positive number, not {}", self.cost_scale)));
+        }
+        if let Some(crash) = self.crash.filter(|c| !(c.is_finite() && *c < 0.0)) {
+            return Err(invalid("reward.crash", format!("must be a negative number, not {crash}")));
+        }
+        Ok(RewardSpec { cost_scale: self.cost_scale, crash: self.crash })
+    }
+}
+
+/// `[vary]`: each key a dotted override path, each value `{ range = [low, high] }` or
+/// `{ choose = [value, ...] }`.
+fn validate_vary(vary: &toml::Table) -> Result<Vec<(String, Variation)>, ScenarioErrorKind> {
+    let invalid = |key: &str, message: &str| ScenarioErrorKind::Invalid {
+        key: format!("vary.\"{key}\""),
+        message: message.to_string(),
+    };
+    let form = "must be { range = [low, high] } with numbers low <= high, or { choose = [value, ...] }";
+    let mut out = Vec::with_capacity(vary.len());
+    for (key, value) in vary {
+        let table = value.as_table().ok_or_else(|| invalid(key, form))?;
+        let variation = match (table.get("range"), table.get("choose"), table.len()) {
+            (Some(toml::Value::Array(range)), None, 1) => {
+                let number = |v: &toml::Value| v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
+                match range.as_slice() {
+                    [low, high] => match (number(low), number(high)) {
+                        (Some(low), Some(high)) if low.is_finite() && high.is_finite() && low <= high => {
+                            Variation::Range(low, high)
+                        }
+                        _ => return Err(invalid(key, form)),
+                    },
+                    _ => return Err(invalid(key, form)),
+                }
+            }
+            (None, Some(toml::Value::Array(values)), 1) if !values.is_empty() => Variation::Choose(values.clone()),
+            _ => return Err(invalid(key, form)),
+        };
+        out.push((key.clone(), variation));
+    }
+    Ok(out)
 }
 
 impl RoadFile {
@@ -637,7 +818,15 @@ impl TrafficFile {
                 format!("lane {lane} does not exist (lanes 0..={})", road.lane_count() - 1),
             ));
         }
+        let gt = self.gt.map(|gt| GtTraffic { count: gt.count, game: gt.game, style: gt.style, role: gt.role });
+        if let Some(gt) = gt.filter(|gt| gt.count > self.count) {
+            return Err(invalid(
+                "traffic.gt.count",
+                format!("{} is more than the {} cars of traffic", gt.count, self.count),
+            ));
+        }
         Ok(TrafficSpec {
+            gt,
             count: self.count,
             density: self.density,
             speed: self.speed,

@@ -130,6 +130,10 @@ pub struct Collision {
     pub front: VehicleId,
 }
 
+/// How far above its lane's speed limit a learner's continuous actions may take it:
+/// 1.2, chosen here (room to overtake, no runaway: unclamped, holding +0.5 reached 75 m/s).
+pub const LEARNER_SPEED_FACTOR: f64 = 1.2;
+
 /// What one driver decided for the coming control period.
 #[derive(Debug, Clone, PartialEq)]
 enum Decision {
@@ -389,7 +393,9 @@ impl World {
         match (vehicle.status, &vehicle.driver) {
             (Status::Crashed, _) => Decision::Accel(-self.idm.accel_limit),
             (Status::OffRoad | Status::Exited, _) => Decision::Accel(0.0),
-            (Status::Driving, Driver::Agent(AgentCommand::Direct(command))) => Decision::Accel(command.accel),
+            (Status::Driving, Driver::Agent(AgentCommand::Direct(command))) => {
+                Decision::Accel(self.learner_accel(scene.car(id), command.accel))
+            }
             (Status::Driving, Driver::Agent(AgentCommand::Track)) => {
                 Decision::Accel(traffic::track_speed(&self.idm, scene.car(id)))
             }
@@ -400,6 +406,16 @@ impl World {
             }
             (Status::Driving, Driver::Gt(gt)) => Decision::Gt(Box::new(gt::plan(scene, id, gt, None))),
         }
+    }
+
+    /// A learner's commanded acceleration, held so that its speed stays within
+    /// [0, lane limit x `LEARNER_SPEED_FACTOR`] over the coming control period.
+    fn learner_accel(&self, car: &Car, accel: f64) -> f64 {
+        let dt = self.params.control_dt;
+        let top = self.road().speed_limit(car.lane) * LEARNER_SPEED_FACTOR;
+        let low = -car.state.vx.max(0.0) / dt;
+        let high = (top - car.state.vx) / dt;
+        accel.clamp(low, high.max(low))
     }
 
     /// What a leader or learner tells the followers it decided: its acceleration and

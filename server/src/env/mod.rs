@@ -23,7 +23,6 @@ use arena_sim::scenario::{ActionKind, DriverSpec, Scenario};
 use arena_sim::world::{Status, VehicleId, World};
 
 pub use observation::{KINEMATICS_FEATURES, KINEMATICS_VEHICLES};
-pub use reward::COLLISION_PENALTY;
 
 /// One agent's results of a step, in the order of the agents that were live before it.
 #[derive(Debug, Clone, PartialEq)]
@@ -58,7 +57,10 @@ struct AgentSlot {
 /// A PettingZoo-Parallel env over one scenario.
 #[derive(Debug, Clone)]
 pub struct Env {
+    /// The scenario as created; each episode draws its own from it (`Scenario::episode`).
     scenario: Scenario,
+    /// The current episode's scenario.
+    episode: Scenario,
     observation: ObservationKind,
     max_cycles: u32,
     render_size: (u32, u32),
@@ -77,6 +79,16 @@ impl Env {
     /// An env over `scenario`, not yet reset. `entropy` seeds the seeds of resets that do
     /// not give one (the server passes the env id).
     pub fn new(scenario: Scenario, options: &CreateOptions, entropy: u64) -> Result<Env, ErrorReply> {
+        if scenario.agents().next().is_none() {
+            return Err(error(
+                ErrorCode::InvalidScenario,
+                format!(
+                    "scenario '{}' has no learner: give one [[vehicle]] driver = {{ kind = \"agent\" }} (an env \
+                     steps the learners' vehicles; scenarios without one are for `arena paper` and the world alone)",
+                    scenario.name
+                ),
+            ));
+        }
         let max_cycles = options.max_cycles.unwrap_or(scenario.max_cycles);
         if max_cycles == 0 {
             return Err(error(ErrorCode::InvalidScenario, "max_cycles must be at least 1"));
@@ -102,6 +114,7 @@ impl Env {
             })
             .collect();
         Ok(Env {
+            episode: scenario.clone(),
             scenario,
             observation: options.observation.unwrap_or(ObservationKind::Kinematics),
             max_cycles,
@@ -143,12 +156,33 @@ impl Env {
         }
     }
 
-    /// Starts an episode. Options this env does not know are ignored, as PettingZoo asks.
-    pub fn reset(&mut self, seed: Option<u64>, _options: &[(String, OptionValue)]) -> ResetOutcome {
-        if let Some(seed) = seed {
-            self.seeds = ChaCha8Rng::seed_from_u64(seed);
+    /// Starts an episode: draws its scenario (the `[vary]` values, then the options'
+    /// `overrides.<dotted key>` values), builds its world from the seed. Any other option
+    /// is refused, naming it, and the env stays as it was.
+    pub fn reset(&mut self, seed: Option<u64>, options: &[(String, OptionValue)]) -> Result<ResetOutcome, ErrorReply> {
+        let overrides = episode_overrides(options)?;
+        let mut seeds = match seed {
+            Some(seed) => ChaCha8Rng::seed_from_u64(seed),
+            None => self.seeds.clone(),
+        };
+        let world_seed = seeds.next_u64();
+        let mut draws = ChaCha8Rng::seed_from_u64(world_seed);
+        let episode = self
+            .scenario
+            .episode(&mut draws, &overrides)
+            .map_err(|e| error(ErrorCode::InvalidScenario, format!("reset: {e}")))?;
+        let learners: Vec<&str> = episode.agents().map(|v| v.name.as_str()).collect();
+        if learners != self.agents.iter().map(|a| a.name.as_str()).collect::<Vec<_>>() {
+            return Err(error(
+                ErrorCode::InvalidScenario,
+                format!(
+                    "reset: the episode's learners {learners:?} are not the env's; overrides may not change who learns"
+                ),
+            ));
         }
-        let mut world = self.scenario.build(self.seeds.next_u64());
+        let mut world = episode.build(world_seed);
+        self.seeds = seeds;
+        self.episode = episode;
         self.cycles = 0;
         for agent in &mut self.agents {
             agent.live = true;
@@ -165,7 +199,7 @@ impl Env {
             })
             .collect();
         self.world = Some(world);
-        outcome
+        Ok(outcome)
     }
 
     /// One env step. Every action is checked before any is applied, so a refused step
@@ -196,16 +230,17 @@ impl Env {
                 return Err(error(ErrorCode::InvalidAction, format!("agent '{name}' has two actions in one step")));
             }
         }
-        for (agent, action) in self.agents.iter().zip(&chosen) {
+        let mut applied = vec![true; self.agents.len()];
+        for ((agent, action), applied) in self.agents.iter().zip(&chosen).zip(&mut applied) {
             if agent.live {
-                action::apply(world, agent.vehicle, action.as_ref(), agent.action);
+                *applied = action::apply(world, agent.vehicle, action.as_ref(), agent.action);
             }
         }
         let live_before: Vec<usize> = (0..self.agents.len()).filter(|&i| self.agents[i].live).collect();
         let driving_before: Vec<bool> =
             live_before.iter().map(|&i| world.vehicle(self.agents[i].vehicle).status == Status::Driving).collect();
         let vehicles: Vec<VehicleId> = live_before.iter().map(|&i| self.agents[i].vehicle).collect();
-        let costs = reward::advance(world, &vehicles, self.scenario.step_dt);
+        let costs = reward::advance(world, &vehicles, self.episode.step_dt);
         self.cycles += 1;
         let truncated = self.cycles >= self.max_cycles;
         let mut results = Vec::with_capacity(live_before.len());
@@ -214,9 +249,13 @@ impl Env {
             let vehicle = world.vehicle(agent.vehicle);
             let crashed_now = driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
             let terminated = vehicle.status != Status::Driving;
-            let reward = -costs[k].weighted - if crashed_now { COLLISION_PENALTY } else { 0.0 };
+            let reward = reward::reward(&self.episode.reward, self.max_cycles, costs[k].weighted, crashed_now);
             let mut info = reward::info(world, agent.vehicle, Some(&costs[k]));
-            if !terminated {
+            info.values.push(("action_applied".to_string(), InfoValue::Bool(applied[i])));
+            if terminated || truncated {
+                let reason = if terminated { reward::end_reason(world, agent.vehicle) } else { "time_limit" };
+                info.values.push(("end_reason".to_string(), InfoValue::Str(reason.to_string())));
+            } else {
                 add_expert(self.expert, &mut info, world, agent);
             }
             results.push(AgentStep {
@@ -263,7 +302,13 @@ fn add_expert(expert: Option<Game>, info: &mut Info, world: &mut World, agent: &
     let decision = expert_decision(world.scene(), agent.vehicle, game, &params);
     let sigma = decision.lane_change.sigma();
     let action = match agent.action {
-        ActionType::Meta => InfoValue::I64(i64::from(action::meta_equivalent(decision.accel, decision.lane_change))),
+        ActionType::Meta => {
+            let vehicle = world.vehicle(agent.vehicle);
+            let (lane, target, s) = (vehicle.target_lane, vehicle.target_speed, vehicle.state.s);
+            let mask = action::meta_mask(world.road(), lane, target, s);
+            let limit = world.road().speed_limit(lane);
+            InfoValue::I64(i64::from(action::meta_equivalent(&decision, mask, vehicle.state.vx, target, limit)))
+        }
         ActionType::Continuous => {
             let accel = (decision.accel / action::CONTINUOUS_ACCEL_SCALE).clamp(-1.0, 1.0);
             InfoValue::F64s(vec![accel, -f64::from(sigma)])
@@ -276,3 +321,28 @@ fn add_expert(expert: Option<Game>, info: &mut Info, world: &mut World, agent: &
 
 #[cfg(test)]
 mod tests;
+
+/// The scenario overrides of a reset's options: every key must be `overrides.<dotted
+/// key>` (`overrides.vehicle.ac.speed`); any other is refused with its name.
+fn episode_overrides(options: &[(String, OptionValue)]) -> Result<Vec<(String, toml::Value)>, ErrorReply> {
+    let mut overrides = Vec::with_capacity(options.len());
+    for (key, value) in options {
+        let Some(path) = key.strip_prefix("overrides.").filter(|path| !path.is_empty()) else {
+            return Err(error(
+                ErrorCode::InvalidOption,
+                format!(
+                    "unknown reset option '{key}': the reset options are overrides.<dotted scenario key> \
+                     (e.g. overrides.vehicle.ac.speed)"
+                ),
+            ));
+        };
+        let value = match value {
+            OptionValue::Bool(b) => toml::Value::Boolean(*b),
+            OptionValue::Int(i) => toml::Value::Integer(*i),
+            OptionValue::Float(f) => toml::Value::Float(*f),
+            OptionValue::Str(s) => toml::Value::String(s.clone()),
+        };
+        overrides.push((path.to_string(), value));
+    }
+    Ok(overrides)
+}

@@ -1,16 +1,46 @@
-//! Rewards and infos. An agent's reward for a step is minus the paper's cost J (eq. 9,
-//! with its own style's Table III weights) averaged over the step's control periods,
-//! minus a penalty the step it crashes: the yardstick the built-in AV decides by. Infos
-//! carry the three cost components so learners can be compared on each.
+//! Rewards and infos (docs/rewards.md). An agent's reward for a step is the paper's cost
+//! J (eq. 9, with its own style's Table III weights, averaged over the step's control
+//! periods: the yardstick the built-in AV decides by) mapped into (0, 1] by
+//! r = J_0 / (J_0 + J), as highway-env maps its rewards into [0, 1]; the step it crashes
+//! or leaves the road earns `RewardSpec::crash` (by default minus the episode length, so
+//! any episode with a crash returns less than any without). Infos carry the raw cost and
+//! its three components so learners can be compared on each.
 
 use arena_protocol::{Info, InfoValue};
 
 use arena_sim::gt::{CostComponents, stage_cost};
+use arena_sim::scenario::RewardSpec;
 use arena_sim::world::{Status, VehicleId, World};
 
-/// Subtracted from the reward on the step an agent crashes. Chosen here to exceed what
-/// J reaches in ordinary driving, so that no cost saved is worth a collision.
-pub const COLLISION_PENALTY: f64 = 1.0e4;
+/// The reward of one step: `spec.crash` (default: minus `max_cycles`) on the step the
+/// agent crashes or leaves the road, else J_0 / (J_0 + J) in (0, 1].
+pub fn reward(spec: &RewardSpec, max_cycles: u32, cost: f64, crashed_now: bool) -> f64 {
+    if crashed_now {
+        return spec.crash.unwrap_or(-f64::from(max_cycles));
+    }
+    if cost.is_nan() {
+        return 0.0;
+    }
+    spec.cost_scale / (spec.cost_scale + cost.max(0.0))
+}
+
+/// Why a vehicle's episode ended, for the `end_reason` info: `collision`, `lane_end`
+/// (drove past the end of its lane), `off_road` (over the road's edge) or `road_end`
+/// (reached the end of the road).
+pub fn end_reason(world: &World, id: VehicleId) -> &'static str {
+    let vehicle = world.vehicle(id);
+    match vehicle.status {
+        Status::Crashed => "collision",
+        Status::Exited => "road_end",
+        Status::OffRoad => {
+            let road = world.road();
+            let lane = road.nearest_lane(vehicle.state.d);
+            let within = (vehicle.state.d - road.lane_center(lane)).abs() <= road.lane_width() / 2.0;
+            if within && vehicle.state.s > road.lane_end(lane) { "lane_end" } else { "off_road" }
+        }
+        Status::Driving => "driving",
+    }
+}
 
 /// The mean cost components of one agent over one env step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

@@ -14,7 +14,7 @@ fn meta(agent: &str, choice: u32) -> Vec<(String, Action)> {
 fn step_before_reset_is_refused_and_reset_makes_every_agent_live() {
     let mut env = env("merge", CreateOptions::default());
     assert_eq!(env.step(&[]).unwrap_err().code, ErrorCode::NotReset);
-    let outcome = env.reset(Some(3), &[]);
+    let outcome = env.reset(Some(3), &[]).unwrap();
     assert_eq!(outcome.len(), 1);
     assert_eq!(env.live_agents(), ["ec_0"]);
 }
@@ -26,7 +26,7 @@ fn observations_lie_inside_their_space() {
             let mut env = env(name, CreateOptions { observation: Some(kind), ..CreateOptions::default() });
             let specs = env.specs();
             let space = &specs.observation_spaces[0].1;
-            let reset = env.reset(Some(1), &[]);
+            let reset = env.reset(Some(1), &[]).unwrap();
             assert!(space.contains(&reset[0].1), "{name}: reset observation outside {space:?}");
             for _ in 0..5 {
                 let steps = env.step(&[]).unwrap();
@@ -44,7 +44,7 @@ fn a_crashed_agent_leaves_at_once_and_never_returns() {
     // it into the lane end... it stops instead (meta keeps speed). Drive it right, off
     // the road edge, which ends its episode.
     let mut env = env("merge", CreateOptions::default());
-    env.reset(Some(0), &[]);
+    env.reset(Some(0), &[]).unwrap();
     let mut finished_at = None;
     for k in 0..200 {
         let steps = env.step(&meta("ec_0", 0)).unwrap(); // left into ac's lane: a crash or a merge
@@ -64,7 +64,7 @@ fn a_crashed_agent_leaves_at_once_and_never_returns() {
 fn missing_action_keeps_lane_and_speed() {
     let mut a = env("highway", CreateOptions::default());
     let mut b = env("highway", CreateOptions::default());
-    assert_eq!(a.reset(Some(5), &[]), b.reset(Some(5), &[]));
+    assert_eq!(a.reset(Some(5), &[]).unwrap(), b.reset(Some(5), &[]).unwrap());
     for _ in 0..3 {
         assert_eq!(a.step(&[]).unwrap(), b.step(&meta("ego_0", 1)).unwrap());
     }
@@ -73,7 +73,7 @@ fn missing_action_keeps_lane_and_speed() {
 #[test]
 fn truncation_at_exactly_max_cycles() {
     let mut env = env("highway", CreateOptions { max_cycles: Some(3), ..CreateOptions::default() });
-    env.reset(Some(2), &[]);
+    env.reset(Some(2), &[]).unwrap();
     assert!(!env.step(&[]).unwrap()[0].truncated);
     assert!(!env.step(&[]).unwrap()[0].truncated);
     let last = env.step(&[]).unwrap();
@@ -82,17 +82,29 @@ fn truncation_at_exactly_max_cycles() {
 }
 
 #[test]
-fn unknown_option_keys_are_ignored() {
-    let mut a = env("merge", CreateOptions::default());
-    let mut b = env("merge", CreateOptions::default());
+fn unknown_reset_options_are_refused_by_name_and_overrides_apply_to_the_episode() {
+    let mut env = env("merge", CreateOptions::default());
+    let first = env.reset(Some(9), &[]).unwrap();
     let odd = [("no_such_option".to_string(), OptionValue::Bool(true))];
-    assert_eq!(a.reset(Some(9), &odd), b.reset(Some(9), &[]));
+    let refused = env.reset(Some(9), &odd).unwrap_err();
+    assert_eq!(refused.code, ErrorCode::InvalidOption);
+    assert!(refused.message.contains("'no_such_option'") && refused.message.contains("overrides."), "{refused}");
+    assert!(env.step(&[]).is_ok(), "a refused reset leaves the episode as it was");
+    let faster = [("overrides.vehicle.ec_0.speed".to_string(), OptionValue::Float(23.0))];
+    let reset = env.reset(Some(9), &faster).unwrap();
+    let speed = |outcome: &ResetOutcome| outcome[0].2.values.iter().find(|(k, _)| k == "speed").map(|(_, v)| v.clone());
+    assert_eq!(speed(&reset), Some(InfoValue::F64(23.0)));
+    assert_eq!(speed(&first), Some(InfoValue::F64(20.0)));
+    // The next reset without the option is the scenario's own again.
+    assert_eq!(env.reset(Some(9), &[]).unwrap(), first);
+    let bad = [("overrides.vehicle.nobody.speed".to_string(), OptionValue::Float(1.0))];
+    assert_eq!(env.reset(Some(9), &bad).unwrap_err().code, ErrorCode::InvalidScenario);
 }
 
 #[test]
 fn bad_actions_are_refused_without_stepping() {
     let mut env = env("merge", CreateOptions::default());
-    env.reset(Some(0), &[]);
+    env.reset(Some(0), &[]).unwrap();
     let before = env.world().unwrap().clone();
     let refuse = |env: &mut Env, actions: Vec<(String, Action)>| env.step(&actions).unwrap_err().code;
     assert_eq!(refuse(&mut env, meta("nobody", 1)), ErrorCode::UnknownAgent);
@@ -109,7 +121,7 @@ fn bad_actions_are_refused_without_stepping() {
         1,
     )
     .unwrap();
-    continuous.reset(Some(0), &[]);
+    continuous.reset(Some(0), &[]).unwrap();
     for bad in [[f32::NAN, 0.0], [0.0, f32::INFINITY], [100.0, 0.0], [0.0, -9.0]] {
         assert_eq!(refuse(&mut continuous, vec![("ec_0".into(), Action::Continuous(bad))]), ErrorCode::InvalidAction);
     }
@@ -130,21 +142,90 @@ fn same_seed_same_bits_other_seed_differs() {
     assert_ne!(run(4), run(5));
 }
 
+fn info<'a>(step: &'a AgentStep, key: &str) -> Option<&'a InfoValue> {
+    step.info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v)
+}
+
 #[test]
-fn reward_is_minus_the_cost_and_a_crash_costs_the_penalty() {
+fn reward_maps_the_cost_into_the_unit_interval_and_a_crash_earns_minus_the_episode_length() {
     let mut env = env("merge", CreateOptions::default());
-    env.reset(Some(0), &[]);
+    env.reset(Some(0), &[]).unwrap();
     let step = &env.step(&[]).unwrap()[0];
-    let cost = step.info.values.iter().find(|(k, _)| k == "cost").map(|(_, v)| v.clone());
-    let Some(InfoValue::F64(cost)) = cost else { panic!("no cost in {:?}", step.info) };
-    assert!(cost > 0.0);
-    assert_eq!(step.reward, -cost);
+    let Some(&InfoValue::F64(cost)) = info(step, "cost") else { panic!("no cost in {:?}", step.info) };
+    let scale = arena_sim::scenario::RewardSpec::DEFAULT_COST_SCALE;
+    assert!(cost > 0.0 && step.reward > 0.0 && step.reward <= 1.0);
+    assert_eq!(step.reward, scale / (scale + cost));
+    assert_eq!(info(step, "end_reason"), None, "only on the step an agent leaves");
+    // Full throttle into a slow car ahead in the same lane crashes.
+    let options = CreateOptions { action_type: Some(ActionType::Continuous), ..CreateOptions::default() };
+    let mut env = super::Env::new(builtin("merge").unwrap().unwrap(), &options, 1).unwrap();
+    let slow_car_ahead = [
+        ("overrides.vehicle.ac.lane".to_string(), OptionValue::Int(1)),
+        ("overrides.vehicle.ac.s".to_string(), OptionValue::Float(80.0)),
+        ("overrides.vehicle.ac.speed".to_string(), OptionValue::Float(5.0)),
+        ("overrides.vehicle.ac.target_speed".to_string(), OptionValue::Float(5.0)),
+    ];
+    env.reset(Some(0), &slow_car_ahead).unwrap();
+    let mut last = None;
+    for _ in 0..200 {
+        let steps = env.step(&[("ec_0".to_string(), Action::Continuous([1.0, 0.0]))]).unwrap();
+        if steps[0].terminated || steps[0].truncated {
+            last = Some(steps[0].clone());
+            break;
+        }
+    }
+    let last = last.expect("the episode ended");
+    assert_eq!(info(&last, "end_reason"), Some(&InfoValue::Str("collision".into())), "{:?}", last.info);
+    assert_eq!(last.reward, -200.0, "merge.toml runs 200 steps");
+}
+
+#[test]
+fn driving_past_the_end_of_the_lane_ends_with_lane_end_and_time_limits_with_time_limit() {
+    let options = CreateOptions { max_cycles: Some(400), ..CreateOptions::default() };
+    let mut env = env("merge", options);
+    // With the adjacent car far behind nothing is hit; holding the lane runs off its end.
+    env.reset(Some(0), &[("overrides.vehicle.ac.s".to_string(), OptionValue::Float(5.0))]).unwrap();
+    let ended = (0..400).find_map(|_| {
+        let steps = env.step(&meta("ec_0", arena_protocol::META_IDLE)).unwrap();
+        (steps[0].terminated || steps[0].truncated).then(|| steps[0].clone())
+    });
+    let ended = ended.expect("the lane ends within 400 steps");
+    assert_eq!(info(&ended, "end_reason"), Some(&InfoValue::Str("lane_end".into())));
+    assert_eq!(ended.reward, -400.0);
+    let mut short = env_with_cycles("highway", 2);
+    short.reset(Some(0), &[]).unwrap();
+    short.step(&[]).unwrap();
+    let last = short.step(&[]).unwrap().remove(0);
+    assert!(last.truncated);
+    assert_eq!(info(&last, "end_reason"), Some(&InfoValue::Str("time_limit".into())));
+}
+
+fn env_with_cycles(name: &str, cycles: u32) -> Env {
+    env(name, CreateOptions { max_cycles: Some(cycles), ..CreateOptions::default() })
+}
+
+#[test]
+fn slower_can_stop_a_learner_behind_the_end_of_its_lane() {
+    // The ladder goes down to 0: five `slower` from 25 m/s and the car stops.
+    let mut env = env("merge", CreateOptions::default());
+    env.reset(Some(0), &[("overrides.vehicle.ac.s".to_string(), OptionValue::Float(5.0))]).unwrap();
+    let mut last = None;
+    for _ in 0..150 {
+        let steps = env.step(&meta("ec_0", arena_protocol::META_SLOWER)).unwrap();
+        assert!(!steps[0].terminated, "{:?}", steps[0].info);
+        last = Some(steps[0].clone());
+    }
+    let last = last.unwrap();
+    let Some(&InfoValue::F64(speed)) = info(&last, "speed") else { panic!() };
+    let Some(&InfoValue::F64(s)) = info(&last, "s") else { panic!() };
+    assert!(speed.abs() < 0.1 && s < 252.0, "stopped at s = {s}, speed {speed}");
+    assert_eq!(info(&last, "action_applied"), Some(&InfoValue::Bool(false)), "at 0 `slower` has nothing to do");
 }
 
 #[test]
 fn renders_show_the_road() {
     let mut env = env("overtake", CreateOptions { render_size: Some((60, 120)), ..CreateOptions::default() });
-    env.reset(Some(0), &[]);
+    env.reset(Some(0), &[]).unwrap();
     let Frame::Rgb { height, width, pixels } = env.render(RenderMode::RgbArray).unwrap() else { panic!("rgb") };
     assert_eq!((height, width, pixels.len()), (60, 120, 60 * 120 * 3));
     assert!(pixels.chunks(3).any(|p| p == [50, 200, 80]), "the agent is drawn");
@@ -158,7 +239,7 @@ fn expert_infos_say_what_the_built_in_av_would_do() {
     let options = CreateOptions { expert: Some(arena_protocol::Game::Stackelberg), ..CreateOptions::default() };
     let mut env = env("merge", options);
     let value = |info: &Info, key: &str| info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
-    let reset = env.reset(Some(0), &[]);
+    let reset = env.reset(Some(0), &[]).unwrap();
     let step = env.step(&[]).unwrap();
     for info in [&reset[0].2, &step[0].info] {
         let Some(InfoValue::I64(action)) = value(info, "expert_action") else { panic!("{info:?}") };
@@ -166,16 +247,67 @@ fn expert_infos_say_what_the_built_in_av_would_do() {
         assert!((0..5).contains(&action) && (-1..=1).contains(&sigma));
         // EC's lane (1) ends; the only way to change lanes is left.
         assert!(sigma <= 0 && action != 2, "sigma {sigma}, action {action}");
-        let expected = i64::from(action::meta_equivalent(
-            match value(info, "expert_accel") {
-                Some(InfoValue::F64(a)) => a,
-                other => panic!("{other:?}"),
-            },
-            arena_sim::road::LaneChange::from_sigma(sigma as i8),
-        ));
-        assert_eq!(action, expected);
+        // A lane change in the expert's decision is the lane action; otherwise a speed one.
+        let speed_actions = [arena_protocol::META_IDLE, arena_protocol::META_FASTER, arena_protocol::META_SLOWER];
+        match sigma {
+            -1 => assert_eq!(action, i64::from(arena_protocol::META_LANE_LEFT)),
+            _ => assert!(speed_actions.map(i64::from).contains(&action), "{action}"),
+        }
     }
-    let plain =
-        super::Env::new(builtin("merge").unwrap().unwrap(), &CreateOptions::default(), 1).unwrap().reset(Some(0), &[]);
+    let plain = super::Env::new(builtin("merge").unwrap().unwrap(), &CreateOptions::default(), 1)
+        .unwrap()
+        .reset(Some(0), &[])
+        .unwrap();
     assert!(value(&plain[0].2, "expert_action").is_none(), "only on request");
+}
+
+#[test]
+fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one() {
+    use rand::{RngExt, SeedableRng};
+    for name in ["merge", "overtake", "highway"] {
+        for action_type in [ActionType::Meta, ActionType::Continuous] {
+            let options = CreateOptions { action_type: Some(action_type), ..CreateOptions::default() };
+            let mut env = env(name, options);
+            let agent = env.specs().possible_agents[0].clone();
+            let max_cycles = env.specs().max_cycles;
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+            let (mut crashed_returns, mut clean_returns) = (Vec::new(), Vec::new());
+            // Random play, then two adversaries: always left, always full throttle.
+            for policy in 0..3 {
+                for seed in 0..4 {
+                    env.reset(Some(seed), &[]).unwrap();
+                    let (mut total, mut crashed) = (0.0, false);
+                    loop {
+                        let action = match (action_type, policy) {
+                            (ActionType::Meta, 0) => Action::Meta(rng.random_range(0..5)),
+                            (ActionType::Meta, 1) => Action::Meta(arena_protocol::META_LANE_LEFT),
+                            (ActionType::Meta, _) => Action::Meta(arena_protocol::META_FASTER),
+                            (_, 0) => Action::Continuous([rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0)]),
+                            (_, 1) => Action::Continuous([0.0, 1.0]),
+                            (_, _) => Action::Continuous([1.0, 0.0]),
+                        };
+                        let step = env.step(&[(agent.clone(), action)]).unwrap().remove(0);
+                        let ended_badly = matches!(
+                            info(&step, "end_reason"),
+                            Some(InfoValue::Str(why)) if ["collision", "off_road", "lane_end"].contains(&why.as_str())
+                        );
+                        if ended_badly {
+                            assert_eq!(step.reward, -f64::from(max_cycles), "{name}: {:?}", step.info);
+                            crashed = true;
+                        } else {
+                            assert!(step.reward > 0.0 && step.reward <= 1.0, "{name}: reward {}", step.reward);
+                        }
+                        total += step.reward;
+                        if step.terminated || step.truncated {
+                            break;
+                        }
+                    }
+                    if crashed { crashed_returns.push(total) } else { clean_returns.push(total) }
+                }
+            }
+            assert!(!crashed_returns.is_empty(), "{name} {action_type:?}: the adversaries crash");
+            let worst_clean = clean_returns.iter().copied().fold(0.0, f64::min);
+            assert!(crashed_returns.iter().all(|&r| r < worst_clean), "{name}: {crashed_returns:?} {clean_returns:?}");
+        }
+    }
 }

@@ -204,7 +204,7 @@ impl Registry {
             RequestBody::ServerInfo => Ok(ReplyBody::ServerInfo(self.info())),
             RequestBody::CreateEnv { scenario, options } => self.create(client, scenario, &options),
             RequestBody::Reset { env, seq, seed, options } => self.sequenced(client, env, seq, |slot| {
-                let outcome = slot.env.reset(seed, &options);
+                let outcome = slot.env.reset(seed, &options)?;
                 let mut observations = Vec::with_capacity(outcome.len());
                 let mut infos = Vec::with_capacity(outcome.len());
                 for (agent, observation, info) in outcome {

@@ -50,6 +50,7 @@ _BY_CODE = {
     "WrongActionType": InvalidActionError,
     "UnknownAgent": InvalidActionError,
     "AgentNotLive": InvalidActionError,
+    "InvalidOption": ScenarioError,
     "UnknownScenario": ScenarioError,
     "InvalidScenario": ScenarioError,
     "EnvClosed": EnvClosedError,

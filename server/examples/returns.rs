@@ -1,0 +1,87 @@
+//! Episode returns of simple policies on every built-in scenario, in process: the figures
+//! of docs/rewards.md. Policies: `idle` (the default action), `random` (uniform over the
+//! action space, seeded), `expert` (the built-in AV's `expert_action`, Stackelberg).
+//!
+//! Run: `cargo run --release -p arena-server --example returns [EPISODES]` (default 20).
+
+use arena_protocol::{Action, ActionType, CreateOptions, Game, InfoValue};
+use arena_server::env::Env;
+use arena_sim::scenario::BUILTIN;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+#[derive(Clone, Copy, Debug)]
+enum Policy {
+    Idle,
+    Random,
+    Expert,
+}
+
+/// One episode's return for the first agent, and how it ended.
+fn episode(env: &mut Env, policy: Policy, seed: u64, rng: &mut ChaCha8Rng) -> (f64, String) {
+    let reset = env.reset(Some(seed), &[]).expect("a built-in scenario resets");
+    let agent = reset[0].0.clone();
+    let mut expert = expert_action(&reset[0].2.values);
+    let (mut total, mut reason) = (0.0, String::new());
+    loop {
+        let action = match policy {
+            Policy::Idle => None,
+            Policy::Random => Some(Action::Meta(rng.random_range(0..5))),
+            Policy::Expert => expert.map(Action::Meta),
+        };
+        let actions: Vec<(String, Action)> = action.map(|a| (agent.clone(), a)).into_iter().collect();
+        let step = env.step(&actions).expect("a valid step").remove(0);
+        total += step.reward;
+        expert = expert_action(&step.info.values);
+        if let Some((_, InfoValue::Str(why))) = step.info.values.iter().find(|(k, _)| k == "end_reason") {
+            reason = why.clone();
+        }
+        if step.terminated || step.truncated {
+            return (total, reason);
+        }
+    }
+}
+
+fn expert_action(info: &[(String, InfoValue)]) -> Option<u32> {
+    info.iter().find_map(|(k, v)| match (k.as_str(), v) {
+        ("expert_action", InfoValue::I64(a)) => u32::try_from(*a).ok(),
+        _ => None,
+    })
+}
+
+fn main() {
+    let episodes: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(20);
+    println!("| scenario | policy | min | mean | max | how episodes ended |");
+    println!("|---|---|---|---|---|---|");
+    for (name, file, text) in BUILTIN {
+        let scenario = arena_sim::scenario::Scenario::parse(file, text, &[]).expect("built-in scenarios validate");
+        if scenario.agents().next().is_none() {
+            continue;
+        }
+        let options = CreateOptions {
+            action_type: Some(ActionType::Meta),
+            expert: Some(Game::Stackelberg),
+            ..CreateOptions::default()
+        };
+        for policy in [Policy::Idle, Policy::Random, Policy::Expert] {
+            let mut env = Env::new(scenario.clone(), &options, 0).expect("a learner to drive");
+            let mut rng = ChaCha8Rng::seed_from_u64(7);
+            let runs: Vec<(f64, String)> =
+                (0..episodes).map(|seed| episode(&mut env, policy, seed, &mut rng)).collect();
+            let returns: Vec<f64> = runs.iter().map(|r| r.0).collect();
+            let mean = returns.iter().sum::<f64>() / returns.len() as f64;
+            let min = returns.iter().copied().fold(f64::INFINITY, f64::min);
+            let max = returns.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let mut reasons: Vec<String> = runs.iter().map(|r| r.1.clone()).collect();
+            reasons.sort();
+            reasons.dedup();
+            let counts: Vec<String> =
+                reasons.iter().map(|why| format!("{} {why}", runs.iter().filter(|r| &r.1 == why).count())).collect();
+            println!(
+                "| {name} | {} | {min:.2} | {mean:.2} | {max:.2} | {} |",
+                format!("{policy:?}").to_lowercase(),
+                counts.join(", ")
+            );
+        }
+    }
+}

@@ -21,8 +21,9 @@ struct Args {
     /// Seconds an env may stay untouched before it is closed.
     #[arg(long, default_value_t = 600.0)]
     idle_timeout: f64,
-    /// A folder of extra scenario files (*.toml), served by file stem beside the built-in
-    /// merge, overtake and highway.
+    /// A folder of extra scenario files (*.toml), each served under the `name` it
+    /// declares, beside the built-in ones (a same-named one replaces a built-in). A bad
+    /// file stops the server with the file and the error.
     #[arg(long)]
     scenarios: Option<PathBuf>,
 }
@@ -38,10 +39,7 @@ fn main() -> anyhow::Result<()> {
 }
 
 async fn serve(args: Args) -> anyhow::Result<()> {
-    let (scenarios, problems) = Scenarios::load(args.scenarios.as_deref());
-    for problem in &problems {
-        eprintln!("arena-server: skipping a scenario: {problem}");
-    }
+    let scenarios = Scenarios::load(args.scenarios.as_deref()).map_err(anyhow::Error::msg)?;
     let config = args.connection.zenoh_config(Role::Server).map_err(anyhow::Error::msg)?;
     let session = zenoh::open(config).await.map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))?;
     let limits = Limits { max_envs: args.max_envs, idle_timeout: Duration::from_secs_f64(args.idle_timeout) };

@@ -43,7 +43,9 @@ async fn serves_then_stops_on_sigterm() {
     match info.expect("the server answered").body {
         ReplyBody::ServerInfo(info) => {
             assert_eq!((info.server_id.as_str(), info.max_envs, info.envs), (server_id.as_str(), 4, 0));
-            assert_eq!(info.scenarios, ["highway", "merge", "overtake"]);
+            let expected =
+                ["highway", "highway-gt", "merge", "merge-ac", "merge-random", "overtake", "overtake-random"];
+            assert_eq!(info.scenarios, expected);
         }
         other => panic!("{other:?}"),
     }
@@ -66,4 +68,53 @@ fn bad_flags_are_refused_with_a_message() {
     let output = Command::new(env!("CARGO_BIN_EXE_arena-server")).args(["--prefix", "a*b"]).output().expect("run");
     assert!(!output.status.success());
     assert!(String::from_utf8_lossy(&output.stderr).contains("cannot be used in a key expression"));
+}
+
+fn run_with_scenarios(dir: &std::path::Path) -> std::process::Output {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    Command::new(env!("CARGO_BIN_EXE_arena-server"))
+        .args(["--listen", &endpoint, "--scenarios"])
+        .arg(dir)
+        .output()
+        .expect("run arena-server")
+}
+
+#[test]
+fn a_scenario_folder_that_is_missing_or_holds_a_bad_file_stops_the_server_naming_it() {
+    let missing = std::env::temp_dir().join(format!("arena-no-such-folder-{}", std::process::id()));
+    let output = run_with_scenarios(&missing);
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("cannot read the scenario folder") && stderr.contains("arena-no-such-folder"), "{stderr}");
+
+    let dir = std::env::temp_dir().join(format!("arena-bad-scenarios-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("broken.toml"), "name = \"broken\"\n[road]\nlanes = 0\n").unwrap();
+    let output = run_with_scenarios(&dir);
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("broken.toml") && stderr.contains("speed_limits"), "{stderr}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_scenario_file_is_served_under_the_name_it_declares() {
+    let dir = std::env::temp_dir().join(format!("arena-named-scenarios-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let merge = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/merge.toml")).unwrap();
+    std::fs::write(dir.join("file-stem.toml"), merge.replace("name = \"merge\"", "name = \"declared\"")).unwrap();
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let mut server = Command::new(env!("CARGO_BIN_EXE_arena-server"))
+        .args(["--listen", &endpoint, "--scenarios"])
+        .arg(&dir)
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start arena-server");
+    let lines: Vec<String> =
+        BufReader::new(server.stdout.take().expect("stdout")).lines().take(2).map_while(Result::ok).collect();
+    server.kill().unwrap();
+    server.wait().unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let listed = lines.iter().find(|l| l.starts_with("scenarios:")).expect("the scenarios line");
+    assert!(listed.contains("declared") && !listed.contains("file-stem"), "{listed}");
 }

@@ -61,7 +61,7 @@ def test_a_server_that_stops_answering_times_out_within_the_timeout_without_hold
 
 
 def test_unknown_scenario_names_the_ones_there_are():
-    with pytest.raises(highway_arena.ScenarioError, match="merge, overtake"):
+    with pytest.raises(highway_arena.ScenarioError, match="merge, merge-ac, merge-random, overtake"):
         highway_arena.parallel_env("nowhere")
 
 
@@ -216,3 +216,16 @@ def test_connection_defaults_are_the_protocol_crates():
     assert parallel.DEFAULT_CONNECT is _core.DEFAULT_CONNECT
     assert parallel.DEFAULT_TIMEOUT is _core.DEFAULT_TIMEOUT
     assert batch.DEFAULT_TIMEOUT is _core.DEFAULT_TIMEOUT
+
+
+def test_reset_options_set_scenario_keys_for_one_episode_and_unknown_keys_are_refused():
+    env = highway_arena.parallel_env("merge")
+    _, infos = env.reset(seed=0, options={"overrides": {"vehicle.ec_0.speed": 23.0}})
+    assert infos["ec_0"]["speed"] == 23.0
+    _, infos = env.reset(seed=0)
+    assert infos["ec_0"]["speed"] == 20.0
+    with pytest.raises(highway_arena.ScenarioError, match="overides"):
+        env.reset(seed=0, options={"overides": {"vehicle.ec_0.speed": 23.0}})
+    with pytest.raises(highway_arena.ScenarioError, match="nobody"):
+        env.reset(seed=0, options={"overrides": {"vehicle.nobody.speed": 23.0}})
+    env.close()

@@ -1,5 +1,5 @@
 """Scenarios with more than one learner: the built-in ones have one, so this file turns
-merge.toml's adjacent car into a second learner and sends the text to the server."""
+merge.toml's adjacent car (a game-theoretic follower) into a second learner and sends the text to the server."""
 
 import pathlib
 
@@ -12,7 +12,10 @@ TWO = (
     (pathlib.Path(__file__).resolve().parents[2] / "scenarios" / "merge.toml")
     .read_text()
     .replace('name = "ac"', 'name = "ec_1"')
-    .replace('driver = { kind = "idm", style = "normal" }', 'driver = { kind = "agent", style = "normal" }')
+    .replace(
+        'driver = { kind = "gt", style = "normal", game = "stackelberg", role = "follower" }',
+        'driver = { kind = "agent", style = "normal" }',
+    )
 )
 assert TWO.count('kind = "agent"') == 2
 

@@ -391,15 +391,14 @@ impl Env {
         seed: Option<u64>,
         options: Option<Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
+        // Wire options, flat (`overrides.vehicle.ac.speed`): the Python layer flattens
+        // the documented dict form; the server refuses keys it does not know.
         let mut parsed = Vec::new();
         if let Some(options) = options {
             for (key, value) in options.iter() {
                 let key: String = key.extract()?;
-                // Options this server does not know are ignored, as PettingZoo asks;
-                // values it cannot carry are dropped the same way.
-                if let Ok(value) = option_value(&key, &value) {
-                    parsed.push((key, value));
-                }
+                let value = option_value(&key, &value)?;
+                parsed.push((key, value));
             }
         }
         let reply = self.with(py, move |env| env.reset(seed, parsed))?;

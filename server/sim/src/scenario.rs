@@ -100,13 +100,17 @@ impl std::error::Error for ScenarioError {}
 
 /// The scenario files shipped in `scenarios/`, compiled in so the server needs no
 /// files beside it: (name, file name, text).
-pub const BUILTIN: [(&str, &str, &str); 3] = [
+pub const BUILTIN: [(&str, &str, &str); 7] = [
     ("merge", "merge.toml", include_str!("../../../scenarios/merge.toml")),
     ("overtake", "overtake.toml", include_str!("../../../scenarios/overtake.toml")),
     ("highway", "highway.toml", include_str!("../../../scenarios/highway.toml")),
+    ("merge-ac", "merge-ac.toml", include_str!("../../../scenarios/merge-ac.toml")),
+    ("highway-gt", "highway-gt.toml", include_str!("../../../scenarios/highway-gt.toml")),
+    ("merge-random", "merge-random.toml", include_str!("../../../scenarios/merge-random.toml")),
+    ("overtake-random", "overtake-random.toml", include_str!("../../../scenarios/overtake-random.toml")),
 ];
 
-/// Loads a built-in scenario by name (`merge`, `overtake`, `highway`).
+/// Loads a built-in scenario by name (`merge`, `overtake`, `highway`, ...).
 pub fn builtin(name: &str) -> Option<Result<Scenario, ScenarioError>> {
     BUILTIN.iter().find(|(n, ..)| *n == name).map(|(_, file, text)| Scenario::parse(file, text, &[]))
 }

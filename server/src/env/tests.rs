@@ -311,3 +311,20 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
         }
     }
 }
+
+#[test]
+fn a_randomised_scenario_repeats_an_episode_bit_for_bit_for_its_seed_and_varies_across_seeds() {
+    for name in ["merge-random", "overtake-random"] {
+        let run = |seed| {
+            let mut env = env(name, CreateOptions::default());
+            let mut replies = vec![format!("{:?}", env.reset(Some(seed), &[]).unwrap())];
+            for k in 0..20u32 {
+                replies.push(format!("{:?}", env.step(&meta("ec_0", k % 5)).unwrap()));
+            }
+            replies
+        };
+        assert_eq!(run(5), run(5), "{name}");
+        let (a, b) = (run(5), run(6));
+        assert_ne!(a[0], b[0], "{name}: two seeds, one first observation");
+    }
+}

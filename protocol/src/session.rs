@@ -10,6 +10,10 @@ pub const DEFAULT_ENDPOINT: &str = "tcp/127.0.0.1:7447";
 /// Seconds a client waits for a reply by default, in every client (Rust, CLI, Python).
 pub const DEFAULT_TIMEOUT: f64 = 10.0;
 
+/// Seconds a Python client waits for a server to appear when it connects, by default:
+/// a loopback port where nothing listens fails within 2 s, session set-up included.
+pub const DEFAULT_CONNECT_TIMEOUT: f64 = 1.0;
+
 /// Which side of the connection a process is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Role {

@@ -12,12 +12,34 @@ import pytest
 import highway_arena
 
 
-def test_no_server_at_the_address_raises_within_the_timeout_with_advice():
+def test_no_server_at_the_address_raises_within_two_seconds_naming_it_with_advice():
     started = time.monotonic()
     with pytest.raises(highway_arena.ServerNotFoundError, match="tcp/127.0.0.1:1 .*launch_server") as raised:
-        highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1", timeout=2.0)
+        highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1")
     assert time.monotonic() - started < 2.0
     assert raised.value.code == "NoServer" and isinstance(raised.value, ConnectionError)
+    started = time.monotonic()
+    with pytest.raises(highway_arena.ServerNotFoundError):
+        highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1", connect_timeout=0.3)
+    assert time.monotonic() - started < 1.0, "connect_timeout sets the wait"
+
+
+def test_a_server_that_dies_gives_an_error_naming_it_at_once_and_close_stays_quiet():
+    with highway_arena.launch_server() as doomed:
+        env = highway_arena.parallel_env("merge", connect=doomed.endpoint)
+        env.reset(seed=0)
+        server_id = env._connection.server
+        doomed.process.send_signal(signal.SIGKILL)
+        doomed.process.wait()
+        started = time.monotonic()
+        with pytest.raises(highway_arena.ServerGoneError, match=f"arena-server {server_id} is gone") as raised:
+            env.step({"ec_0": 1})
+        waited = time.monotonic() - started
+        assert waited < 5.0, "not the whole 10 s timeout"
+        reported = float(str(raised.value).split(" in ")[1].split(" s")[0])
+        assert abs(reported - waited) < 0.5, (reported, waited)
+        env.close()
+        env.close()
 
 
 def test_malformed_or_unusable_addresses_are_refused_with_the_form_to_use():

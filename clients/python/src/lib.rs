@@ -9,7 +9,7 @@ use std::sync::Mutex;
 use arena_client::blocking::{Client as BlockingClient, Env as BlockingEnv};
 use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSource};
 use arena_protocol::keys::DEFAULT_PREFIX;
-use arena_protocol::session::{ConnectionFlags, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
+use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
     Action, ActionType, Frame, Game, Info, InfoValue, Observation, ObservationKind, RenderMode, Space, StepReply,
     Tensor, TensorData,
@@ -30,6 +30,7 @@ fn to_py_err(error: ClientError) -> PyErr {
         ClientError::Server(reply) => format!("{:?}", reply.code),
         ClientError::Timeout { .. } => "Timeout".to_string(),
         ClientError::NoServer { .. } => "NoServer".to_string(),
+        ClientError::ServerGone { .. } => "ServerGone".to_string(),
         ClientError::Zenoh(_) => "Zenoh".to_string(),
         ClientError::Protocol(_) => "Protocol".to_string(),
     };
@@ -82,8 +83,15 @@ impl Client {
     }
 
     /// The first server found, waiting up to the timeout for one.
-    fn pick_server(&self, py: Python<'_>) -> PyResult<String> {
-        py.detach(|| self.inner.pick_server()).map_err(to_py_err)
+    /// The first server found, waiting up to `wait` seconds (default: the timeout).
+    #[pyo3(signature = (wait = None))]
+    fn pick_server(&self, py: Python<'_>, wait: Option<f64>) -> PyResult<String> {
+        let wait = wait.filter(|w| w.is_finite() && *w >= 0.0).map(std::time::Duration::from_secs_f64);
+        py.detach(|| match wait {
+            Some(wait) => self.inner.pick_server_within(wait),
+            None => self.inner.pick_server(),
+        })
+        .map_err(to_py_err)
     }
 
     /// Creates an env: `scenario` names one on the server, or `text` is a scenario
@@ -435,13 +443,16 @@ impl Env {
         observation_value(py, &state)
     }
 
-    /// Closes the env on the server. Idempotent.
+    /// Closes the env on the server. Idempotent, and quiet when the server is gone or
+    /// the env already closed there: closing is best effort (a server reclaims the envs
+    /// of clients that leave), and raising from `close` helps no caller.
     fn close(&self, py: Python<'_>) -> PyResult<()> {
-        py.detach(|| match lock(&self.inner).take() {
-            Some(mut env) => env.close(),
-            None => Ok(()),
-        })
-        .map_err(to_py_err)
+        py.detach(|| {
+            if let Some(mut env) = lock(&self.inner).take() {
+                let _ = env.close();
+            }
+        });
+        Ok(())
     }
 }
 
@@ -451,6 +462,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_CONNECT", DEFAULT_ENDPOINT)?;
     m.add("DEFAULT_PREFIX", DEFAULT_PREFIX)?;
     m.add("DEFAULT_TIMEOUT", DEFAULT_TIMEOUT)?;
+    m.add("DEFAULT_CONNECT_TIMEOUT", DEFAULT_CONNECT_TIMEOUT)?;
     m.add_class::<Client>()?;
     m.add_class::<Env>()?;
     m.add("ArenaError", m.py().get_type::<ArenaError>())?;

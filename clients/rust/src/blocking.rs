@@ -3,6 +3,8 @@
 
 use std::sync::Arc;
 
+use std::time::Duration;
+
 use arena_protocol::session::ConnectionFlags;
 
 use crate::{
@@ -47,6 +49,11 @@ impl Client {
     /// See `crate::Client::pick_server`.
     pub fn pick_server(&self) -> Result<String> {
         self.block_on(self.inner.pick_server())
+    }
+
+    /// See `crate::Client::pick_server_within`.
+    pub fn pick_server_within(&self, wait: Duration) -> Result<String> {
+        self.block_on(self.inner.pick_server_within(wait))
     }
 
     /// See `crate::Client::server_info`.

@@ -49,6 +49,16 @@ pub enum ClientError {
         /// How long the client waited in all.
         waited: Duration,
     },
+    /// Occurs when nothing answers on the server's key at all: the server stopped or
+    /// restarted, and the envs it held are gone.
+    ServerGone {
+        /// The server's id.
+        server: String,
+        /// What was asked.
+        what: String,
+        /// How long the client tried (retries included).
+        waited: Duration,
+    },
     /// Occurs when no server answers under the prefix.
     NoServer {
         /// The prefix searched.
@@ -69,6 +79,12 @@ impl fmt::Display for ClientError {
                 "no reply to {what} within {:.1} s; is an arena-server running and reachable? (start one with `arena-server`)",
                 waited.as_secs_f64()
             ),
+            ClientError::ServerGone { server, what, waited } => write!(
+                f,
+                "arena-server {server} is gone: nothing answered {what} on its key in {:.1} s (it stopped or \
+                 restarted), so the envs it held no longer exist; create new ones",
+                waited.as_secs_f64()
+            ),
             ClientError::NoServer { prefix } => write!(
                 f,
                 "no arena-server found under prefix '{prefix}'; start one with `arena-server`, or point --connect (Python: connect=) at its endpoint"
@@ -87,6 +103,10 @@ pub type Result<T> = std::result::Result<T, ClientError>;
 fn zenoh_error(e: impl fmt::Display) -> ClientError {
     ClientError::Zenoh(e.to_string())
 }
+
+/// Pause before asking again when nothing answered on a server's key at all (a route
+/// may be settling); after every attempt so answered, the server is taken as gone.
+const GONE_GRACE: Duration = Duration::from_millis(50);
 
 struct Inner {
     session: zenoh::Session,
@@ -160,7 +180,12 @@ impl Client {
 
     /// The first server found, waiting up to the timeout for one to appear.
     pub async fn pick_server(&self) -> Result<String> {
-        let deadline = Instant::now() + self.inner.timeout;
+        self.pick_server_within(self.inner.timeout).await
+    }
+
+    /// The first server found, waiting up to `wait` for one to appear.
+    pub async fn pick_server_within(&self, wait: Duration) -> Result<String> {
+        let deadline = Instant::now() + wait;
         loop {
             if let Some(server) = self.servers().await?.into_iter().next() {
                 return Ok(server);
@@ -244,7 +269,9 @@ impl Client {
         let key = keys::server_rpc(&self.inner.prefix, server).map_err(zenoh_error)?;
         let attempts = if retry { self.inner.retries + 1 } else { 1 };
         let started = Instant::now();
+        let mut unanswered = true;
         for _ in 0..attempts {
+            let sent = Instant::now();
             if let Some(bytes) = self.get_once(&key, bytes.clone()).await? {
                 let reply: Reply = decode(&bytes)
                     .map_err(|e| ClientError::Protocol(format!("cannot decode the reply to {what}: {e}")))?;
@@ -253,8 +280,18 @@ impl Client {
                     body => Ok(body),
                 };
             }
+            // A get that ends well before its timeout found no queryable on the key.
+            if sent.elapsed() < self.inner.timeout / 2 {
+                tokio::time::sleep(GONE_GRACE).await;
+            } else {
+                unanswered = false;
+            }
         }
-        Err(ClientError::Timeout { what: what.to_string(), waited: started.elapsed() })
+        let waited = started.elapsed();
+        if unanswered {
+            return Err(ClientError::ServerGone { server: server.to_string(), what: what.to_string(), waited });
+        }
+        Err(ClientError::Timeout { what: what.to_string(), waited })
     }
 
     /// One Zenoh get; `None` when nothing answered in time.

@@ -162,14 +162,14 @@ fn tables(runs: &[Run]) -> String {
 
 const COLOURS: [RGBColor; 4] = [RGBColor(200, 30, 30), RGBColor(30, 80, 200), RGBColor(20, 150, 60), BLACK];
 
-/// Speed (top) and gap (bottom) against time for one run, t_c marked; each car keeps its
-/// colour in both panels.
+/// Speed, gap and EC's lateral position against time for one run, t_c marked; each car
+/// keeps its colour in every panel.
 fn plot(run: &Run, file: &Path) -> anyhow::Result<()> {
-    let root = BitMapBackend::new(file, (900, 700)).into_drawing_area();
+    let root = BitMapBackend::new(file, (900, 1000)).into_drawing_area();
     root.fill(&WHITE)?;
     let title = format!("Scenario {} - {} - {}", run.scenario.name(), run.style.name(), run.game.name());
     let root = root.titled(&title, ("sans-serif", 24))?;
-    let (top, bottom) = root.split_vertically(340);
+    let panels = root.split_evenly((3, 1));
     let samples = &run.trace.samples;
     let t_end = samples.last().map_or(1.0, |s| s.t + 0.1);
     let t_c = run.record.t_c;
@@ -178,9 +178,12 @@ fn plot(run: &Run, file: &Path) -> anyhow::Result<()> {
     let gaps: Vec<Vec<(f64, f64)>> =
         (0..run.trace.roles.len() - 1).map(|i| samples.iter().map(|s| (s.t, s.gaps[i])).collect()).collect();
     let names: Vec<String> = run.trace.roles.iter().map(|r| format!("v {r}")).collect();
-    panel(&top, "speed (m/s)", t_end, &speeds, &names, 0, t_c)?;
+    panel(&panels[0], "speed (m/s)", t_end, &speeds, &names, 0, t_c)?;
     let names: Vec<String> = run.trace.roles[1..].iter().map(|r| format!("gap EC-{r}")).collect();
-    panel(&bottom, "gap (m), EC ahead > 0", t_end, &gaps, &names, 1, t_c)?;
+    panel(&panels[1], "gap (m), EC ahead > 0", t_end, &gaps, &names, 1, t_c)?;
+    // The lane change itself: EC's lateral offset, positive to the left.
+    let lateral = vec![samples.iter().map(|s| (s.t, s.d)).collect()];
+    panel(&panels[2], "EC lateral position d (m)", t_end, &lateral, &["d EC".to_string()], 0, t_c)?;
     root.present()?;
     Ok(())
 }

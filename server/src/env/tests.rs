@@ -228,10 +228,29 @@ fn renders_show_the_road() {
     env.reset(Some(0), &[]).unwrap();
     let Frame::Rgb { height, width, pixels } = env.render(RenderMode::RgbArray).unwrap() else { panic!("rgb") };
     assert_eq!((height, width, pixels.len()), (60, 120, 60 * 120 * 3));
-    assert!(pixels.chunks(3).any(|p| p == [50, 200, 80]), "the agent is drawn");
+    assert!(pixels.chunks(3).any(|p| p == [50, 200, 80]), "the learner is drawn green");
+    assert!(pixels.chunks(3).any(|p| p == [60, 120, 235]), "the game-theoretic adjacent cars are drawn blue");
+    assert!(pixels.chunks(3).any(|p| p == [230, 200, 60]), "the IDM lead car is drawn yellow");
+    assert!(pixels.chunks(3).filter(|p| *p == [255, 255, 255]).count() > 50, "the time and legend are written");
     let Frame::Ansi(text) = env.render(RenderMode::Ansi).unwrap() else { panic!("ansi") };
-    assert_eq!(text.matches('@').count(), 1);
+    let road: String = text.lines().filter(|l| l.starts_with('.') || l.starts_with(' ')).collect();
+    assert_eq!((road.matches('@').count(), road.matches('G').count(), road.matches('>').count()), (1, 2, 1), "{text}");
+    assert!(text.contains("G game-theoretic"), "{text}");
     assert_eq!(text.lines().filter(|l| l.starts_with('-')).count(), 4, "{text}");
+}
+
+#[test]
+fn past_a_lane_end_the_line_beside_it_is_a_solid_edge_and_the_ended_lane_has_none() {
+    let mut env = env("merge", CreateOptions::default());
+    env.reset(Some(0), &[]).unwrap();
+    let world = env.world().unwrap();
+    let marked = |s: f64, d: f64| super::render::is_marking(world, s, d, 0.05);
+    // Between lanes 0 and 1 (d = -2): dashed while both go on, solid after lane 1 ends.
+    let before: Vec<bool> = (0..12).map(|k| marked(100.0 + k as f64 * 0.5, -2.0)).collect();
+    assert!(before.contains(&true) && before.contains(&false), "dashed: {before:?}");
+    assert!((0..40).all(|k| marked(260.0 + k as f64 * 0.5, -2.0)), "solid past the end");
+    // The right edge of lane 1 (d = -6) is drawn up to the end and not after.
+    assert!(marked(200.0, -6.0) && !marked(300.0, -6.0));
 }
 
 #[test]

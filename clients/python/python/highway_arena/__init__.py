@@ -22,12 +22,14 @@ from ._errors import (
     InvalidActionError,
     InvalidEndpointError,
     ScenarioError,
+    ServerGoneError,
     ServerNotFoundError,
 )
 from ._server import LocalServer, find_server_binary, launch_server
 from .batch import BatchEnv
 from .parallel import ParallelEnv, default_connect
 from .single import GymEnv
+from .vector import VectorEnv
 
 __all__ = [
     "ArenaError",
@@ -40,7 +42,9 @@ __all__ = [
     "LocalServer",
     "ParallelEnv",
     "ScenarioError",
+    "ServerGoneError",
     "ServerNotFoundError",
+    "VectorEnv",
     "batch_env",
     "default_connect",
     "env",
@@ -48,10 +52,11 @@ __all__ = [
     "gym_env",
     "launch_server",
     "parallel_env",
+    "vector_env",
 ]
 
 
-for _scenario in ("merge", "overtake", "highway"):
+for _scenario in ("merge", "merge-ac", "overtake", "highway", "highway-gt", "merge-random", "overtake-random"):
     # gymnasium.make("highway_arena/merge-v0", connect=...) builds a GymEnv.
     gymnasium.register(
         f"highway_arena/{_scenario}-v0", entry_point="highway_arena.single:GymEnv", kwargs={"scenario": _scenario}
@@ -83,3 +88,9 @@ def gym_env(scenario="highway", agent=None, connect=None, render_mode=None, **kw
 def batch_env(scenario="highway", num_envs=8, connect=None, **kwargs) -> BatchEnv:
     """``num_envs`` envs stepped in one round trip per step."""
     return BatchEnv(scenario, num_envs=num_envs, connect=connect, **kwargs)
+
+
+def vector_env(scenario="highway", num_envs=8, agent=None, connect=None, **kwargs) -> VectorEnv:
+    """A ``gymnasium.vector.VectorEnv`` of ``num_envs`` copies of one learner's view of
+    ``scenario``, stepped in one round trip per step, with next-step autoreset."""
+    return VectorEnv(scenario, num_envs=num_envs, agent=agent, connect=connect, **kwargs)

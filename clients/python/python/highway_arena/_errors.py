@@ -30,6 +30,11 @@ class InvalidActionError(ArenaError, ValueError):
     that is not live."""
 
 
+class ServerGoneError(ArenaError, ConnectionError):
+    """The env's arena-server no longer answers (it stopped or restarted): the env is
+    gone with it; create a new one."""
+
+
 class InvalidEndpointError(ArenaError, ValueError):
     """``connect`` is not a Zenoh endpoint this client can use (write tcp/HOST:PORT)."""
 
@@ -45,6 +50,7 @@ class EnvClosedError(ArenaError):
 _BY_CODE = {
     "InvalidEndpoint": InvalidEndpointError,
     "NoServer": ServerNotFoundError,
+    "ServerGone": ServerGoneError,
     "Timeout": ArenaTimeoutError,
     "InvalidAction": InvalidActionError,
     "WrongActionType": InvalidActionError,

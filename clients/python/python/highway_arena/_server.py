@@ -22,25 +22,33 @@ class LocalServer:
     process: subprocess.Popen
 
 
+# Where a wheel built by scripts/build-wheel carries the server (see that script).
+BUNDLED_SERVER = pathlib.Path(__file__).resolve().parent / "bin" / "arena-server"
+
+
 def find_server_binary(binary=None) -> str:
-    """``binary``, else $ARENA_SERVER, else ``arena-server`` on PATH, else the
-    repository's target/{debug,release}/arena-server."""
+    """The arena-server to start: ``binary``, else $ARENA_SERVER, else the one bundled in
+    this package's wheel, else ``arena-server`` on PATH, else this repository's
+    target/release/arena-server, then target/debug/arena-server."""
     if binary:
         return str(binary)
     if os.environ.get("ARENA_SERVER"):
         return os.environ["ARENA_SERVER"]
+    if BUNDLED_SERVER.is_file():
+        return str(BUNDLED_SERVER)
     found = shutil.which("arena-server")
     if found:
         return found
     here = pathlib.Path(__file__).resolve()
     for root in [*here.parents, pathlib.Path.cwd()]:
-        for profile in ("debug", "release"):
+        for profile in ("release", "debug"):
             candidate = root / "target" / profile / "arena-server"
             if candidate.is_file():
                 return str(candidate)
     raise FileNotFoundError(
-        "cannot find arena-server: build it with `cargo build -p arena-server`, put it on PATH, "
-        "set $ARENA_SERVER, or pass binary=..."
+        "cannot find arena-server: install a wheel built with scripts/build-wheel (it carries one), "
+        "build it with `cargo build --release -p arena-server`, put it on PATH, set $ARENA_SERVER, "
+        "or pass binary=..."
     )
 
 

@@ -6,17 +6,26 @@ from __future__ import annotations
 from . import _convert
 from ._errors import InvalidActionError, translate, translated
 from . import _core
-from .parallel import DEFAULT_PREFIX, DEFAULT_TIMEOUT, Connection
+from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_TIMEOUT, Connection
 
 
 class BatchEnv:
     """``num_envs`` copies of a scenario; env ``i`` is seeded ``seed + i`` and re-seeded
     from its own stream when its episode ends."""
 
-    def __init__(self, scenario="highway", num_envs=8, connect=None, prefix=DEFAULT_PREFIX, timeout=DEFAULT_TIMEOUT, **options):
+    def __init__(
+        self,
+        scenario="highway",
+        num_envs=8,
+        connect=None,
+        prefix=DEFAULT_PREFIX,
+        timeout=DEFAULT_TIMEOUT,
+        connect_timeout=DEFAULT_CONNECT_TIMEOUT,
+        **options,
+    ):
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
-        self._connection = Connection(connect, prefix, timeout)
+        self._connection = Connection(connect, prefix, timeout, connect_timeout)
         self._envs = []
         try:
             for _ in range(num_envs):

@@ -24,6 +24,7 @@ from ._errors import (
 DEFAULT_CONNECT = _core.DEFAULT_CONNECT
 DEFAULT_PREFIX = _core.DEFAULT_PREFIX
 DEFAULT_TIMEOUT = _core.DEFAULT_TIMEOUT
+DEFAULT_CONNECT_TIMEOUT = _core.DEFAULT_CONNECT_TIMEOUT
 RENDER_MODES = ["human", "rgb_array", "ansi"]
 
 
@@ -86,7 +87,7 @@ class Connection:
     """One Zenoh session and the server picked on it. ``timeout`` bounds, in seconds,
     how long any one call waits in all (retries included)."""
 
-    def __init__(self, connect=None, prefix=DEFAULT_PREFIX, timeout=DEFAULT_TIMEOUT):
+    def __init__(self, connect=None, prefix=DEFAULT_PREFIX, timeout=DEFAULT_TIMEOUT, connect_timeout=DEFAULT_CONNECT_TIMEOUT):
         endpoints = _endpoints(connect)
         timeout = float(timeout)
         if not timeout > 0 or timeout == float("inf"):
@@ -102,7 +103,7 @@ class Connection:
                 f"write the endpoint as PROTOCOL/HOST:PORT, e.g. {DEFAULT_CONNECT}",
             ) from None
         try:
-            self.server = self.client.pick_server()
+            self.server = self.client.pick_server(wait=min(float(connect_timeout), timeout))
         except _core.ArenaError as error:
             self.client.close()
             code, message = error.args
@@ -132,7 +133,8 @@ class ParallelEnv(_ParallelEnv):
     'continuous'), ``observation`` ('kinematics' or 'kinematics_with_mask'), ``expert``
     ('nash' or 'stackelberg': infos say what the built-in AV would do), ``seed`` (used by
     the first ``reset()`` that is given none, for reproducible runs), ``timeout`` (the
-    seconds any one call may wait for the server, retries included; default 10), and scenario
+    seconds any one call may wait for the server, retries included; default 10),
+    ``connect_timeout`` (the seconds to wait for a server to appear; default 1), and scenario
     overrides as keyword arguments with dots written as double underscores
     (``vehicle__ac__speed=18.0``) or in ``overrides={"vehicle.ac.speed": 18.0}``."""
 
@@ -151,6 +153,7 @@ class ParallelEnv(_ParallelEnv):
         overrides=None,
         prefix=DEFAULT_PREFIX,
         timeout=DEFAULT_TIMEOUT,
+        connect_timeout=DEFAULT_CONNECT_TIMEOUT,
         render_size=None,
         seed=None,
         **dotted,
@@ -161,7 +164,7 @@ class ParallelEnv(_ParallelEnv):
             raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, not {render_mode!r}")
         all_overrides = dict(overrides or {})
         all_overrides.update({key.replace("__", "."): value for key, value in dotted.items()})
-        self._connection = Connection(connect, prefix, timeout)
+        self._connection = Connection(connect, prefix, timeout, connect_timeout)
         try:
             self._env = self._connection.create(
                 scenario,

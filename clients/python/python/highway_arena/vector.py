@@ -1,0 +1,133 @@
+"""A Gymnasium ``VectorEnv`` for training loops: ``num_envs`` copies of one learner's
+view of a scenario on one server, all stepped in one round trip per step (the server
+spreads the batch over its cores). Autoreset is Gymnasium 1.x's default, next-step:
+the step after an episode ends resets that sub-env, returning its first observation
+with reward 0 and no termination, and ignores its action."""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
+
+from . import _convert, _core
+from ._errors import translate, translated
+from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_TIMEOUT, Connection, reset_options
+
+
+class VectorEnv(gymnasium.vector.VectorEnv):
+    """``num_envs`` copies of ``scenario`` for one learner (``agent``, default the first;
+    other learners' vehicles are driven by IDM, as in ``gym_env``). Takes
+    ``parallel_env``'s options (``action_type``, ``observation``, ``expert``,
+    ``max_cycles``, ``overrides``, ``scenario_text``, ``timeout``, ...). ``reset(seed=s)``
+    seeds sub-env ``i`` with ``s + i``; a list gives each its own seed."""
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(
+        self,
+        scenario="highway",
+        num_envs=8,
+        agent=None,
+        connect=None,
+        prefix=DEFAULT_PREFIX,
+        timeout=DEFAULT_TIMEOUT,
+        connect_timeout=DEFAULT_CONNECT_TIMEOUT,
+        scenario_text=None,
+        overrides=None,
+        **options,
+    ):
+        if int(num_envs) < 1:
+            raise ValueError(f"num_envs must be at least 1, not {num_envs}")
+        self.num_envs = int(num_envs)
+        self._connection = Connection(connect, prefix, timeout, connect_timeout)
+        self._envs = []
+        try:
+            overrides = dict(overrides or {})
+            probe = self._connection.create(scenario, scenario_text, overrides, **options)
+            learners = list(probe.specs()["possible_agents"])
+            self.agent = agent if agent is not None else learners[0]
+            if self.agent not in learners:
+                translated(probe.close)()
+                raise ValueError(f"scenario {scenario!r} has no learner named {self.agent!r}; its learners are {learners}")
+            others = [a for a in learners if a != self.agent]
+            if others:
+                translated(probe.close)()
+                overrides.update({f"vehicle.{a}.driver": '{ kind = "idm" }' for a in others})
+                probe = self._connection.create(scenario, scenario_text, overrides, **options)
+            self._envs.append(probe)
+            for _ in range(self.num_envs - 1):
+                self._envs.append(self._connection.create(scenario, scenario_text, overrides, **options))
+            specs = probe.specs()
+        except BaseException:
+            self.close()
+            raise
+        self.single_observation_space = _convert.space(specs["observation_spaces"][self.agent])
+        self.single_action_space = _convert.space(specs["action_spaces"][self.agent])
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.dt = specs["dt"]
+        self._observations = create_empty_array(self.single_observation_space, self.num_envs)
+        self._autoreset = np.zeros(self.num_envs, dtype=np.bool_)
+
+    def _seeds(self, seed):
+        if seed is None:
+            return [None] * self.num_envs
+        if isinstance(seed, int):
+            return [seed + i for i in range(self.num_envs)]
+        seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"{len(seeds)} seeds for {self.num_envs} envs")
+        return seeds
+
+    @translated
+    def reset(self, *, seed=None, options=None):
+        seeds = self._seeds(seed)
+        super().reset(seed=seed if isinstance(seed, int) else None)
+        wire = reset_options(options)
+        observations, infos = [], {}
+        for i, (env, env_seed) in enumerate(zip(self._envs, seeds)):
+            obs, info = env.reset(env_seed, wire)
+            observations.append(_convert.observation(obs[self.agent]))
+            infos = self._add_info(infos, info[self.agent], i)
+        self._autoreset[:] = False
+        return self._batch(observations), infos
+
+    @translated
+    def step(self, actions):
+        actions = np.asarray(actions) if not isinstance(actions, dict) else actions
+        stepping = [i for i in range(self.num_envs) if not self._autoreset[i]]
+        wire = [{self.agent: _convert.action(actions[i], self.single_action_space, self.agent)} for i in stepping]
+        results = self._connection.client.step_batch([self._envs[i] for i in stepping], wire) if stepping else []
+        observations = [None] * self.num_envs
+        rewards = np.zeros(self.num_envs, dtype=np.float64)
+        terminations = np.zeros(self.num_envs, dtype=np.bool_)
+        truncations = np.zeros(self.num_envs, dtype=np.bool_)
+        infos = {}
+        for i, result in zip(stepping, results):
+            if isinstance(result, _core.ArenaError):
+                raise translate(result)
+            obs, reward, terminated, truncated, info, _agents = result
+            observations[i] = _convert.observation(obs[self.agent])
+            rewards[i] = reward[self.agent]
+            terminations[i] = terminated[self.agent]
+            truncations[i] = truncated[self.agent]
+            infos = self._add_info(infos, info[self.agent], i)
+        for i in range(self.num_envs):
+            if self._autoreset[i]:
+                obs, info = self._envs[i].reset(None, {})
+                observations[i] = _convert.observation(obs[self.agent])
+                infos = self._add_info(infos, info[self.agent], i)
+        self._autoreset = terminations | truncations
+        return self._batch(observations), rewards, terminations, truncations, infos
+
+    def _batch(self, observations):
+        return concatenate(self.single_observation_space, observations, self._observations).copy()
+
+    def close_extras(self, **kwargs):
+        for env in self._envs:
+            translated(env.close)()
+        self._envs = []
+        if hasattr(self, "_connection"):
+            self._connection.close()

@@ -1,65 +1,69 @@
-"""Train PPO (Stable-Baselines3) on highway.toml through SuperSuit, and print the mean
-episode reward of the policy before and after training.
+"""Train PPO (Stable-Baselines3) against a scenario through the vector env
+(highway_arena.sb3.vec_env: every step of all envs in one round trip), and print the
+mean episode return of the policy before and after training, with how episodes ended.
 
     pip install -r examples/requirements-ppo.txt     # stable-baselines3 and torch
-    python examples/ppo_highway.py --timesteps 20000
+    python examples/ppo_highway.py --scenario merge --timesteps 20000
 
-Launches its own arena-server (or use --connect ENDPOINT for a running one).
+Launches its own arena-server (or use --connect ENDPOINT for a running one). Rewards lie
+in (0, 1] per step, a crash costs minus the episode length (docs/rewards.md), so no
+reward normalisation is needed.
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
+import time
 
 import numpy as np
-import supersuit as ss
 from stable_baselines3 import PPO
 from stable_baselines3.common.utils import set_random_seed
 
 import highway_arena
+from highway_arena.sb3 import vec_env
 
 
-def mean_episode_reward(model, connect: str, episodes: int) -> float:
-    env = highway_arena.gym_env("highway", connect=connect)
-    totals = []
+def evaluate(model, scenario: str, connect: str, episodes: int) -> tuple[float, dict]:
+    env = highway_arena.gym_env(scenario, connect=connect)
+    totals, endings = [], collections.Counter()
     for episode in range(episodes):
         observation, _ = env.reset(seed=10_000 + episode)
-        total, done = 0.0, False
+        total, done, info = 0.0, False, {}
         while not done:
             action, _ = model.predict(observation, deterministic=True)
-            observation, reward, terminated, truncated, _ = env.step(int(action))
+            observation, reward, terminated, truncated, info = env.step(action)
             total += reward
             done = terminated or truncated
         totals.append(total)
+        endings[info.get("end_reason", "?")] += 1
     env.close()
-    return float(np.mean(totals))
+    return float(np.mean(totals)), dict(endings)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--connect", help="endpoint of a running arena-server (default: launch one)")
+    parser.add_argument("--scenario", default="highway", help="scenario to train on (default highway)")
     parser.add_argument("--timesteps", type=int, default=20_000, help="PPO training steps (default 20000)")
     parser.add_argument("--envs", type=int, default=8, help="parallel envs for training (default 8)")
     parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes (default 10)")
+    parser.add_argument("--save", help="write the trained model to this .zip file")
     args = parser.parse_args()
 
     def run(connect: str) -> None:
-        parallel = highway_arena.parallel_env("highway", connect=connect)
-        vec = ss.pettingzoo_env_to_vec_env_v1(parallel)
-        vec = ss.concat_vec_envs_v1(vec, args.envs, num_cpus=0, base_class="stable_baselines3")
-        # Rewards are minus the paper's cost J, which spans orders of magnitude. (SB3 warns
-        # here that `render_mode` is not defined: SuperSuit's ConcatVecEnv has no get_attr.)
-        from stable_baselines3.common.vec_env import VecNormalize
-
-        vec = VecNormalize(vec, norm_obs=False, norm_reward=True)
-        # SuperSuit's ConcatVecEnv has no seed(); seed torch and numpy, not the env.
+        vec = vec_env(args.scenario, num_envs=args.envs, connect=connect)
         set_random_seed(0)
-        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, verbose=0)
-        before = mean_episode_reward(model, connect, args.episodes)
-        print(f"mean episode reward before training: {before:.1f}")
+        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, seed=0, verbose=0)
+        before, endings = evaluate(model, args.scenario, connect, args.episodes)
+        print(f"before training: mean return {before:.1f}, episodes ended {endings}")
+        started = time.perf_counter()
         model.learn(total_timesteps=args.timesteps, progress_bar=False)
-        after = mean_episode_reward(model, connect, args.episodes)
-        print(f"mean episode reward after {args.timesteps} steps: {after:.1f}")
+        seconds = time.perf_counter() - started
+        after, endings = evaluate(model, args.scenario, connect, args.episodes)
+        print(f"after {args.timesteps} steps ({seconds:.0f} s): mean return {after:.1f}, episodes ended {endings}")
+        if args.save:
+            model.save(args.save)
         vec.close()
 
     if args.connect:

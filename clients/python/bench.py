@@ -1,11 +1,15 @@
 """Simulated seconds per wall second through the Python API on highway.toml (set up
-like highway-env's highway-v0): one ParallelEnv stepped through the PettingZoo API, and
-batches of envs stepped in one round trip each (highway_arena.batch_env).
+like highway-env's highway-v0): one ParallelEnv stepped through the PettingZoo API,
+batches of envs stepped in one round trip each (highway_arena.batch_env), and the
+Gymnasium vector env (highway_arena.vector_env). With --vs-envpool, EnvPool's C++
+Highway-v0 in the same run (pip install envpool): 1 env on 1 thread, and each batch
+size on 2 threads.
 
-    python clients/python/bench.py --binary target/release/arena-server
+    python clients/python/bench.py --binary target/release/arena-server [--vs-envpool]
 
 Without --connect it launches its own arena-server (the --binary given, else the one
-highway_arena.launch_server finds). Prints a table, or JSON with --json.
+highway_arena.launch_server finds). Every policy is `idle` (meta action 1, as in
+highway-env). Prints a table, or JSON with --json.
 """
 
 from __future__ import annotations
@@ -48,6 +52,38 @@ def batched(connect: str, num_envs: int, seconds: float) -> float:
     return rounds * num_envs * envs.dt / elapsed
 
 
+def vectorised(connect: str, num_envs: int, seconds: float) -> float:
+    envs = highway_arena.vector_env("highway", num_envs=num_envs, connect=connect)
+    envs.reset(seed=0)
+    actions = [1] * num_envs
+    rounds = 0
+    started = time.perf_counter()
+    while time.perf_counter() - started < seconds:
+        envs.step(actions)
+        rounds += 1
+    elapsed = time.perf_counter() - started
+    envs.close()
+    return rounds * num_envs * envs.dt / elapsed
+
+
+def envpool_rate(num_envs: int, threads: int, seconds: float) -> float:
+    """EnvPool's Highway-v0: one step is one simulated second (policy frequency 1)."""
+    import envpool
+    import numpy as np
+
+    envs = envpool.make("Highway-v0", env_type="gymnasium", num_envs=num_envs, num_threads=threads)
+    envs.reset()
+    actions = np.ones(num_envs, dtype=np.int32)
+    rounds = 0
+    started = time.perf_counter()
+    while time.perf_counter() - started < seconds:
+        envs.step(actions)
+        rounds += 1
+    elapsed = time.perf_counter() - started
+    envs.close()
+    return rounds * num_envs / elapsed
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--connect", help="endpoint of a running arena-server (default: launch one)")
@@ -57,16 +93,30 @@ def main() -> int:
         "--batch", "--batches", dest="batches", default="16,64,128", help="comma-separated batch sizes (default 16,64,128)"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--vs-envpool", action="store_true", help="also measure EnvPool's Highway-v0 (pip install envpool)")
     args = parser.parse_args()
     sizes = [int(size) for size in args.batches.split(",") if size]
 
+    if args.vs_envpool:
+        try:
+            import envpool  # noqa: F401
+        except ImportError:
+            parser.error("--vs-envpool needs EnvPool in this Python: pip install envpool")
+
     def run(connect: str) -> dict:
-        figures = {"single_sim_s_per_s": None, "batch": {}}
+        figures = {"single_sim_s_per_s": None, "batch": {}, "vector": {}}
         print("one env through the PettingZoo API ...", file=sys.stderr)
         figures["single_sim_s_per_s"] = single(connect, args.seconds)
         for size in sizes:
             print(f"batch of {size} envs ...", file=sys.stderr)
             figures["batch"][str(size)] = batched(connect, size, args.seconds)
+            print(f"vector env of {size} envs ...", file=sys.stderr)
+            figures["vector"][str(size)] = vectorised(connect, size, args.seconds)
+        if args.vs_envpool:
+            figures["envpool"] = {"1 (1 thread)": envpool_rate(1, 1, args.seconds)}
+            for size in sizes:
+                print(f"EnvPool Highway-v0, {size} envs on 2 threads ...", file=sys.stderr)
+                figures["envpool"][f"{size} (2 threads)"] = envpool_rate(size, 2, args.seconds)
         return figures
 
     if args.connect:
@@ -77,9 +127,13 @@ def main() -> int:
     if args.json:
         print(json.dumps(figures, indent=2))
     else:
-        print(f"one env:       {figures['single_sim_s_per_s']:9.1f} simulated s per wall s")
+        print(f"one env:            {figures['single_sim_s_per_s']:9.1f} simulated s per wall s")
         for size, rate in figures["batch"].items():
-            print(f"batch of {size:>3}:  {rate:9.1f} simulated s per wall s")
+            print(f"batch of {size:>3}:       {rate:9.1f} simulated s per wall s")
+        for size, rate in figures["vector"].items():
+            print(f"vector env of {size:>3}:  {rate:9.1f} simulated s per wall s")
+        for label, rate in figures.get("envpool", {}).items():
+            print(f"EnvPool {label:>14}: {rate:9.1f} simulated s per wall s")
     return 0
 
 

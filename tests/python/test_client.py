@@ -185,12 +185,13 @@ def test_batch_env_matches_single_envs():
     batch = highway_arena.batch_env("highway", num_envs=3)
     starts = batch.reset(seed=10)
     single = highway_arena.parallel_env("highway")
-    first, _ = single.reset(seed=11)
-    assert np.array_equal(starts[1]["ego_0"], first["ego_0"])
+    first, first_infos = single.reset(seed=11)
+    assert len(starts) == 3 and all(len(start) == 2 for start in starts), "(observations, infos) per env"
+    assert np.array_equal(starts[1][0]["ego_0"], first["ego_0"]) and starts[1][1] == first_infos
     results = batch.step([{"ego_0": 3}] * 3)
     expected = single.step({"ego_0": 3})
     assert np.array_equal(results[1][0]["ego_0"], expected[0]["ego_0"])
-    assert results[1][1] == expected[1]
+    assert results[1][1:] == expected[1:]
     batch.close()
     single.close()
 

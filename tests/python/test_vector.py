@@ -12,16 +12,23 @@ from gymnasium.vector import AutoresetMode
 import highway_arena
 
 
-@pytest.mark.parametrize("action_type", ["meta", "continuous"])
-def test_the_vector_env_matches_gymnasiums_sync_vector_env_step_for_step(action_type):
+@pytest.mark.parametrize(
+    "action_type, mode",
+    [
+        ("meta", AutoresetMode.NEXT_STEP),
+        ("continuous", AutoresetMode.NEXT_STEP),
+        ("meta", AutoresetMode.SAME_STEP),
+    ],
+)
+def test_the_vector_env_matches_gymnasiums_sync_vector_env_step_for_step(action_type, mode):
     n = 3
     # Short episodes so several sub-envs autoreset within the run.
-    ours = highway_arena.vector_env("merge", num_envs=n, action_type=action_type, max_cycles=7)
+    ours = highway_arena.vector_env("merge", num_envs=n, action_type=action_type, max_cycles=7, autoreset_mode=mode)
     reference = gymnasium.vector.SyncVectorEnv(
         [lambda: highway_arena.gym_env("merge", action_type=action_type, max_cycles=7) for _ in range(n)],
-        autoreset_mode=AutoresetMode.NEXT_STEP,
+        autoreset_mode=mode,
     )
-    assert ours.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    assert ours.metadata["autoreset_mode"] == mode
     assert ours.single_observation_space == reference.single_observation_space
     assert ours.single_action_space == reference.single_action_space
     assert ours.observation_space == reference.observation_space and ours.action_space == reference.action_space

@@ -283,7 +283,7 @@ fn expert_infos_say_what_the_built_in_av_would_do() {
 #[test]
 fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one() {
     use rand::{RngExt, SeedableRng};
-    for name in ["merge", "overtake", "highway"] {
+    for (name, ..) in arena_sim::scenario::BUILTIN {
         for action_type in [ActionType::Meta, ActionType::Continuous] {
             let options = CreateOptions { action_type: Some(action_type), ..CreateOptions::default() };
             let mut env = env(name, options);

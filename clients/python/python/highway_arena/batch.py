@@ -1,12 +1,13 @@
-"""Many envs of one scenario on one server, stepped in one round trip each step
-(the server spreads a batch over its cores). Finished envs reset themselves."""
+"""Many multi-agent envs of one scenario on one server, stepped in one round trip each
+step (the server spreads a batch over its cores); each env's reset and step give what
+a ParallelEnv's give. Finished envs reset themselves."""
 
 from __future__ import annotations
 
 from . import _convert
 from ._errors import InvalidActionError, translate, translated
 from . import _core
-from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_TIMEOUT, Connection
+from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_TIMEOUT, Connection, reset_options
 
 
 class BatchEnv:
@@ -40,11 +41,15 @@ class BatchEnv:
         self.num_envs = num_envs
 
     @translated
-    def reset(self, seed=0):
-        return [
-            {a: _convert.observation(o) for a, o in env.reset(seed + i, None)[0].items()}
-            for i, env in enumerate(self._envs)
-        ]
+    def reset(self, seed=0, options=None):
+        """Resets every env (env ``i`` with ``seed + i``). Returns one (observations,
+        infos) per env, as ``ParallelEnv.reset`` does."""
+        wire = reset_options(options)
+        out = []
+        for i, env in enumerate(self._envs):
+            observations, infos = env.reset(seed + i, wire)
+            out.append(({a: _convert.observation(o) for a, o in observations.items()}, infos))
+        return out
 
     @translated
     def step(self, actions):

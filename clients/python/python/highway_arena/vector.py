@@ -1,8 +1,10 @@
 """A Gymnasium ``VectorEnv`` for training loops: ``num_envs`` copies of one learner's
 view of a scenario on one server, all stepped in one round trip per step (the server
-spreads the batch over its cores). Autoreset is Gymnasium 1.x's default, next-step:
-the step after an episode ends resets that sub-env, returning its first observation
-with reward 0 and no termination, and ignores its action."""
+spreads the batch over its cores). Autoreset is Gymnasium 1.x's default, next-step (the
+step after an episode ends resets that sub-env, returning its first observation with
+reward 0 and no termination, and ignores its action), or same-step on request (the
+ending step resets at once; the episode's last observation and info go into
+``final_obs`` and ``final_info``), which is what Stable-Baselines3 expects (``sb3``)."""
 
 from __future__ import annotations
 
@@ -36,8 +38,13 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         connect_timeout=DEFAULT_CONNECT_TIMEOUT,
         scenario_text=None,
         overrides=None,
+        autoreset_mode=AutoresetMode.NEXT_STEP,
         **options,
     ):
+        autoreset_mode = AutoresetMode(autoreset_mode)
+        if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, not {autoreset_mode}")
+        self.metadata = {**self.metadata, "autoreset_mode": autoreset_mode}
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
         self.num_envs = int(num_envs)
@@ -113,13 +120,18 @@ class VectorEnv(gymnasium.vector.VectorEnv):
             rewards[i] = reward[self.agent]
             terminations[i] = terminated[self.agent]
             truncations[i] = truncated[self.agent]
+            if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and (terminations[i] or truncations[i]):
+                infos = self._add_info(infos, {"final_obs": observations[i], "final_info": info[self.agent]}, i)
+                obs, info = self._envs[i].reset(None, {})
+                observations[i] = _convert.observation(obs[self.agent])
             infos = self._add_info(infos, info[self.agent], i)
         for i in range(self.num_envs):
             if self._autoreset[i]:
                 obs, info = self._envs[i].reset(None, {})
                 observations[i] = _convert.observation(obs[self.agent])
                 infos = self._add_info(infos, info[self.agent], i)
-        self._autoreset = terminations | truncations
+        if self.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP:
+            self._autoreset = terminations | truncations
         return self._batch(observations), rewards, terminations, truncations, infos
 
     def _batch(self, observations):

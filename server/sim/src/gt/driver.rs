@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 
 use super::costs::{self, CostComponents};
 use super::field::{self, Field, FieldParams, Obstacle};
-use super::games::{Adjacent, Decision, DecisionParams, Game, LaneOption, Player, Situation};
+use super::games::{Adjacent, Decision, DecisionParams, Game, LaneOption, Needs, Player, Situation};
 use super::mpc::{self, Mpc, MpcError, MpcParams, MpcProblem, MpcSolution};
 use super::prediction::{self, Kinematics, SpeedBounds};
 use super::styles::CostWeights;
@@ -276,7 +276,7 @@ fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decisi
     let side = side.sigma();
     let accel = match game {
         Game::Nash => {
-            let side_game = view.side_game(side, &params.decision);
+            let side_game = view.side_game(side, &params.decision, Needs::Nash);
             if side_game.ec_actions.is_empty() {
                 return alone();
             }
@@ -288,7 +288,7 @@ fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decisi
             let sigma = if change.sigma() == side { side } else { 0 };
             let me = player(scene, scene.car(id), scene.car(id).lane, params);
             let grid = params.decision.game.grid(me.now.speed, me.bounds, scene.control_dt);
-            let side_game = view.side_game_with(side, vec![(accel, sigma)], grid, &params.decision);
+            let side_game = view.side_game_with(side, vec![(accel, sigma)], grid, &params.decision, Needs::Replies);
             side_game.ac_actions[side_game.table.best_reply(0)] // eq. (17b)
         }
     };

@@ -80,8 +80,34 @@ impl GameParams {
     }
 }
 
+/// Which of EC's costs a side's game must compute. AC's are always all there (every
+/// equilibrium needs AC's best replies); EC's are needed only where an equilibrium
+/// search reads them, and computing only those is what makes a decision fast. `All`
+/// fills the whole table: the straightforward reference the tests compare against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Needs {
+    /// Every cell.
+    All,
+    /// The columns that are some row's best reply (eq. 15).
+    Nash,
+    /// Each row's follower set within this tolerance (eq. 17b).
+    Stackelberg(f64),
+    /// None: only AC's replies are read.
+    Replies,
+}
+
+impl Needs {
+    /// What `game` reads.
+    pub fn of(game: Game, params: &GameParams) -> Needs {
+        match game {
+            Game::Nash => Needs::Nash,
+            Game::Stackelberg => Needs::Stackelberg(params.follower_tolerance),
+        }
+    }
+}
+
 /// A bimatrix game: `rows` leader (EC) actions × `cols` follower (AC) actions, costs
-/// stored row-major.
+/// stored row-major. EC's cells that its `Needs` left out hold NaN and are never read.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PayoffTable {
     /// Number of EC actions.
@@ -90,8 +116,11 @@ pub struct PayoffTable {
     pub cols: usize,
     /// J^EC per (row, col).
     pub ec: Vec<f64>,
-    /// J^AC per (row, col).
+    /// J^AC per (row, col); NaN where a fast search proved the cell cannot matter (it
+    /// costs AC more than its best reply and than any follower-set bound).
     pub ac: Vec<f64>,
+    /// AC's best reply per row, when the builder found it; empty: found from `ac`.
+    pub replies: Vec<usize>,
 }
 
 /// A chosen pair of actions.
@@ -107,7 +136,9 @@ pub struct Profile {
 
 impl PayoffTable {
     fn ec(&self, row: usize, col: usize) -> f64 {
-        self.ec[row * self.cols + col]
+        let cost = self.ec[row * self.cols + col];
+        debug_assert!(!cost.is_nan(), "EC's cost at ({row}, {col}) was not computed");
+        cost
     }
 
     fn ac(&self, row: usize, col: usize) -> f64 {
@@ -116,19 +147,23 @@ impl PayoffTable {
 
     /// AC's best reply to `row` (the first of equal ones).
     pub fn best_reply(&self, row: usize) -> usize {
-        (0..self.cols).fold(0, |best, col| if self.ac(row, col) < self.ac(row, best) { col } else { best })
+        match self.replies.get(row) {
+            Some(&col) => col,
+            None => (0..self.cols).fold(0, |best, col| if self.ac(row, col) < self.ac(row, best) { col } else { best }),
+        }
     }
 
     /// Eq. (15): a pure Nash equilibrium, each action a best response to the other; of
-    /// several, the one EC prefers. `None` when the table has none.
+    /// several, the one EC prefers. `None` when the table has none. Reads EC's costs only
+    /// in the columns that are some row's best reply (`Needs::Nash`).
     pub fn nash(&self) -> Option<Profile> {
-        let ec_best: Vec<f64> = (0..self.cols)
-            .map(|col| (0..self.rows).map(|row| self.ec(row, col)).fold(f64::INFINITY, f64::min))
-            .collect();
+        let mut column_min: Vec<Option<f64>> = vec![None; self.cols];
         let mut best: Option<(usize, usize)> = None;
         for row in 0..self.rows {
             let col = self.best_reply(row); // eq. (15b)
-            let is_equilibrium = self.ec(row, col) <= ec_best[col]; // eq. (15a)
+            let floor = *column_min[col]
+                .get_or_insert_with(|| (0..self.rows).map(|r| self.ec(r, col)).fold(f64::INFINITY, f64::min));
+            let is_equilibrium = self.ec(row, col) <= floor; // eq. (15a)
             if is_equilibrium && best.is_none_or(|(r, c)| self.ec(row, col) < self.ec(r, c)) {
                 best = Some((row, col));
             }
@@ -286,6 +321,13 @@ impl SideGame {
     }
 }
 
+/// What one cell of a side's tables reads.
+struct Cell<'a> {
+    samples: &'a Samples,
+    option: Option<&'a LaneOption>,
+    params: &'a DecisionParams,
+}
+
 /// The predicted samples every entry of a side's tables reads.
 struct Samples {
     ec: Vec<Vec<Kinematics>>,
@@ -345,14 +387,15 @@ impl Situation {
         actions
     }
 
-    /// Builds the game of side `side` (eq. 16c–f / 18c–f) with its two cost tables.
-    pub fn side_game(&self, side: i8, params: &DecisionParams) -> SideGame {
+    /// Builds the game of side `side` (eq. 16c–f / 18c–f) with AC's cost table and the
+    /// cells of EC's that `needs` asks for.
+    pub fn side_game(&self, side: i8, params: &DecisionParams, needs: Needs) -> SideGame {
         let ec_actions = self.ec_actions(side, &params.game);
         let option = self.option(side).copied();
         let adjacent = option.and_then(|o| o.adjacent);
         let ac_actions =
             adjacent.map_or(vec![0.0], |ac| params.game.grid(ac.player.now.speed, ac.player.bounds, self.period));
-        self.side_game_with(side, ec_actions, ac_actions, params)
+        self.side_game_with(side, ec_actions, ac_actions, params, needs)
     }
 
     /// Builds side `side`'s game for the given actions (a row or column may be a single
@@ -363,35 +406,95 @@ impl Situation {
         ec_actions: Vec<(f64, i8)>,
         ac_actions: Vec<f64>,
         params: &DecisionParams,
+        needs: Needs,
     ) -> SideGame {
         let option = self.option(side).copied();
         let samples = self.samples(&ec_actions, &ac_actions, option.as_ref(), params);
         let (rows, cols) = (ec_actions.len(), ac_actions.len());
-        let mut table = PayoffTable { rows, cols, ec: vec![0.0; rows * cols], ac: vec![0.0; rows * cols] };
+        let mut table = PayoffTable {
+            rows,
+            cols,
+            ec: vec![f64::NAN; rows * cols],
+            ac: vec![f64::NAN; rows * cols],
+            replies: Vec::with_capacity(rows),
+        };
+        let cell = Cell { samples: &samples, option: option.as_ref(), params };
+        // Lower bounds on AC's cost per column for a lane-change row: the lateral term is
+        // never negative, so a column whose bound exceeds the best cost found cannot be
+        // AC's reply nor in its follower set, and is not computed (`Needs::All` computes
+        // every cell: the reference).
+        let floors = self.ac_floors(&cell, &ac_actions);
+        let mut by_floor: Vec<usize> = (0..cols).collect();
+        by_floor.sort_by(|&a, &b| floors[a].total_cmp(&floors[b]).then(a.cmp(&b)));
+        let tolerance = match needs {
+            Needs::Stackelberg(tolerance) => tolerance,
+            _ => 0.0,
+        };
         // While EC keeps its lane, its cost does not depend on AC's action nor AC's on
         // EC's: one column per row and one row of AC costs serve all those rows.
-        let mut keeping: Option<Vec<f64>> = None;
+        let mut keeping: Option<(Vec<f64>, usize)> = None;
         for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
-            let entry = |col: usize| {
-                let ac_accel = ac_actions[col];
-                let (ec, ac) = self.entry(&samples, row, col, accel, sigma, ac_accel, option.as_ref(), params);
-                (ec.weighted_by(&self.ego.weights), ac)
-            };
-            let cells = &mut table.ec[row * cols..(row + 1) * cols];
             let replies = &mut table.ac[row * cols..(row + 1) * cols];
-            match (sigma, &keeping) {
-                (0, Some(alone)) => {
-                    cells.fill(entry(0).0);
-                    replies.copy_from_slice(alone);
+            let reply = if let (0, Some((alone, reply))) = (sigma, &keeping) {
+                replies.copy_from_slice(alone);
+                *reply
+            } else if sigma == 0 || needs == Needs::All {
+                for (col, cost) in replies.iter_mut().enumerate() {
+                    *cost = self.ac_entry(&cell, row, col, sigma, ac_actions[col]);
                 }
-                _ => {
-                    for col in 0..cols {
-                        (cells[col], replies[col]) = entry(col);
+                let reply = (0..cols).fold(0, |best, col| if replies[col] < replies[best] { col } else { best });
+                if sigma == 0 {
+                    keeping = Some((replies.to_vec(), reply));
+                }
+                reply
+            } else {
+                let mut best = (f64::INFINITY, usize::MAX);
+                let mut bound = f64::INFINITY;
+                for &col in &by_floor {
+                    if floors[col] > bound {
+                        break;
                     }
-                    if sigma == 0 {
-                        keeping = Some(replies.to_vec());
+                    let cost = self.ac_entry(&cell, row, col, sigma, ac_actions[col]);
+                    replies[col] = cost;
+                    if cost < best.0 || (cost == best.0 && col < best.1) {
+                        best = (cost, col);
+                        bound = cost + tolerance * cost.abs(); // eq. (17b)'s set, as `stackelberg` reads it
                     }
                 }
+                best.1
+            };
+            table.replies.push(reply);
+            if sigma == 0 {
+                let own = self.ec_entry(&cell, row, 0, accel, sigma).weighted_by(&self.ego.weights);
+                table.ec[row * cols..(row + 1) * cols].fill(own);
+            }
+        }
+        let mut wanted = vec![matches!(needs, Needs::All); rows * cols];
+        match needs {
+            Needs::All | Needs::Replies => {}
+            Needs::Nash => {
+                for r in 0..rows {
+                    let col = table.best_reply(r);
+                    (0..rows).for_each(|row| wanted[row * cols + col] = true);
+                }
+            }
+            Needs::Stackelberg(tolerance) => {
+                for row in 0..rows {
+                    let floor = table.ac(row, table.best_reply(row));
+                    let bound = floor + tolerance * floor.abs(); // eq. (17b), as `stackelberg` reads it
+                    for col in (0..cols).filter(|&col| table.ac(row, col) <= bound) {
+                        wanted[row * cols + col] = true;
+                    }
+                }
+            }
+        }
+        for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
+            if sigma == 0 {
+                continue;
+            }
+            for col in (0..cols).filter(|&col| wanted[row * cols + col]) {
+                table.ec[row * cols + col] =
+                    self.ec_entry(&cell, row, col, accel, sigma).weighted_by(&self.ego.weights);
             }
         }
         SideGame { ec_actions, ac_actions, table, option }
@@ -439,29 +542,54 @@ impl Situation {
         }
     }
 
-    /// EC's cost components and AC's weighted cost for one profile, averaged over the
-    /// predicted samples.
-    #[allow(clippy::too_many_arguments)]
-    fn entry(
-        &self,
-        samples: &Samples,
-        row: usize,
-        col: usize,
-        accel: f64,
-        sigma: i8,
-        ac_accel: f64,
-        option: Option<&LaneOption>,
-        params: &DecisionParams,
-    ) -> (CostComponents, f64) {
-        let c = &params.costs;
+    /// Per AC action, a lower bound on AC's cost in any lane-change row: its cost with the
+    /// lateral term at zero, summed as `ac_entry` sums (rounding is monotonic, so the
+    /// bound holds in floating point too). Its efficiency counts only when no lead-car
+    /// cap can make it depend on EC's position (`lead_range` 0).
+    fn ac_floors(&self, cell: &Cell, ac_actions: &[f64]) -> Vec<f64> {
+        let (samples, c) = (cell.samples, &cell.params.costs);
+        let Some(adj) = cell.option.and_then(|o| o.adjacent) else { return vec![0.0; ac_actions.len()] };
+        let n = samples.ec.first().map_or(0, Vec::len);
+        ac_actions
+            .iter()
+            .enumerate()
+            .map(|(col, &ac_accel)| {
+                let Some(ac_path) = samples.ac.get(col) else { return 0.0 };
+                let comfort = costs::comfort(c, 0, ac_accel, 0.0);
+                let mut sum = 0.0;
+                for (k, &ac) in ac_path.iter().enumerate().take(n) {
+                    let efficiency = if c.lead_range <= 0.0 {
+                        let limit = adj.player.bounds.max;
+                        costs::efficiency(ac.speed, costs::target_speed(c, ac, limit, samples.ac_lead.get(k).copied()))
+                    } else {
+                        0.0
+                    };
+                    let parts = CostComponents { safety: 0.0, comfort, efficiency };
+                    sum += parts.weighted_by(&adj.player.weights);
+                }
+                sum / n.max(1) as f64
+            })
+            .collect()
+    }
+
+    /// The lateral term of eq. (12) at sample `k` of a profile: zero while EC keeps its
+    /// lane (eq. 10), shared by EC's cost and AC's (§IV-A).
+    fn lateral(&self, c: &CostParams, sigma: i8, ego: Kinematics, ac: Option<Kinematics>) -> f64 {
+        match (sigma, ac) {
+            (0, _) | (_, None) => 0.0,
+            (_, Some(ac)) => costs::lateral_safety(c, self.car_length, ego, ac),
+        }
+    }
+
+    /// EC's cost components for one profile, averaged over the predicted samples.
+    fn ec_entry(&self, cell: &Cell, row: usize, col: usize, accel: f64, sigma: i8) -> CostComponents {
+        let (samples, c) = (cell.samples, &cell.params.costs);
         let ec_path = &samples.ec[row];
         let ac_path = samples.ac.get(col);
         let target = self.option(sigma).unwrap_or(&self.keep);
         let lateral_accel = prediction::lane_change_accel(self.lane_width);
         let ec_comfort = costs::comfort(c, sigma, accel, lateral_accel);
-        let ac_comfort = costs::comfort(c, 0, ac_accel, 0.0);
-        let adjacent = option.and_then(|o| o.adjacent);
-        let (mut ec_sum, mut ac_sum) = (CostComponents::default(), 0.0);
+        let mut ec_sum = CostComponents::default();
         for (k, &ego) in ec_path.iter().enumerate() {
             let ac = ac_path.map(|path| path[k]);
             let (lead, ec_lead_extra) = if sigma == 0 {
@@ -469,10 +597,7 @@ impl Situation {
             } else {
                 (samples.lead_side.get(k).copied(), ac.filter(|ac| ac.s >= ego.s))
             };
-            let lateral = match (sigma, ac) {
-                (0, _) | (_, None) => 0.0,
-                (_, Some(ac)) => costs::lateral_safety(c, self.car_length, ego, ac),
-            };
+            let lateral = self.lateral(c, sigma, ego, ac);
             let longitudinal = match sigma {
                 0 => samples
                     .leader
@@ -488,12 +613,27 @@ impl Situation {
                     comfort: ec_comfort,
                     efficiency: costs::efficiency(ego.speed, v_bar),
                 };
-            if let (Some(ac), Some(adj)) = (ac, adjacent) {
-                ac_sum += self.ac_cost(samples, k, ego, ac, &adj, sigma, ac_comfort, lateral, c);
-            }
         }
         let n = ec_path.len().max(1) as f64;
-        (ec_sum * (1.0 / n), ac_sum / n)
+        ec_sum * (1.0 / n)
+    }
+
+    /// AC's weighted cost for one profile, averaged over the predicted samples (0 with no
+    /// adjacent car).
+    fn ac_entry(&self, cell: &Cell, row: usize, col: usize, sigma: i8, ac_accel: f64) -> f64 {
+        let (samples, c) = (cell.samples, &cell.params.costs);
+        let (Some(ac_path), Some(adj)) = (samples.ac.get(col), cell.option.and_then(|o| o.adjacent)) else {
+            return 0.0;
+        };
+        let ec_path = &samples.ec[row];
+        let ac_comfort = costs::comfort(c, 0, ac_accel, 0.0);
+        let mut ac_sum = 0.0;
+        for (k, &ego) in ec_path.iter().enumerate() {
+            let ac = ac_path[k];
+            let lateral = self.lateral(c, sigma, ego, Some(ac));
+            ac_sum += self.ac_cost(samples, k, ego, ac, &adj, sigma, ac_comfort, lateral, c);
+        }
+        ac_sum / ec_path.len().max(1) as f64
     }
 
     /// J^AC at one sample: its own lead obstacle while EC keeps its lane, the shared
@@ -538,15 +678,23 @@ impl Situation {
         let ec_actions = vec![(accel, sigma)];
         let ac_actions = vec![ac_accel];
         let samples = self.samples(&ec_actions, &ac_actions, game.option.as_ref(), params);
-        self.entry(&samples, 0, 0, accel, sigma, ac_accel, game.option.as_ref(), params).0
+        let cell = Cell { samples: &samples, option: game.option.as_ref(), params };
+        let _ = ac_accel;
+        self.ec_entry(&cell, 0, 0, accel, sigma)
     }
 
     /// EC's decision: each side's equilibrium (eq. 16c–f or 18c–f), then the cheaper
     /// side (eq. 16a / 18a; on a tie the left one, whose game is built first).
     pub fn decide(&self, game: Game, params: &DecisionParams) -> Decision {
+        self.decide_reading(game, params, Needs::of(game, &params.game))
+    }
+
+    /// `decide`, computing the cells of EC's tables that `needs` asks for (`Needs::All`:
+    /// the whole tables, the reference the fast search is tested against).
+    pub fn decide_reading(&self, game: Game, params: &DecisionParams, needs: Needs) -> Decision {
         let mut best: Option<(f64, SideGame, Profile)> = None;
         for side in [-1, 1] {
-            let side_game = self.side_game(side, params);
+            let side_game = self.side_game(side, params, needs);
             if side_game.ec_actions.is_empty() {
                 continue;
             }

@@ -29,6 +29,7 @@ fn table(ec: &[&[f64]], ac: &[&[f64]]) -> PayoffTable {
         cols: ec[0].len(),
         ec: ec.iter().flat_map(|r| r.iter().copied()).collect(),
         ac: ac.iter().flat_map(|r| r.iter().copied()).collect(),
+        replies: Vec::new(),
     }
 }
 
@@ -89,6 +90,7 @@ fn the_leader_never_pays_more_than_at_a_nash_equilibrium() {
             cols,
             ec: (0..rows * cols).map(|_| next()).collect(),
             ac: (0..rows * cols).map(|_| next()).collect(),
+            replies: Vec::new(),
         };
         let (nash, stackelberg) = (t.nash(), t.stackelberg(0.0));
         if let Some(nash) = nash {
@@ -304,4 +306,76 @@ fn the_expert_of_a_gt_car_is_its_own_planned_decision_with_its_own_tolerance() {
         world.advance(world.params().control_dt);
     }
     assert!(differs, "the tolerance never mattered: the test would not see default constants");
+}
+
+/// A pseudo-random game situation: EC in the middle of three lanes, a lead obstacle or
+/// not, each side present or not, with or without an adjacent car, a change under way
+/// now and then. Drawn from `next` (uniform in [0, 1)).
+fn random_situation(next: &mut impl FnMut() -> f64) -> super::games::Situation {
+    use super::games::{Adjacent, LaneOption, Player, Situation};
+    use super::prediction::{Kinematics, SpeedBounds};
+    let style = |x: f64| Style::ALL[((x * 3.0) as usize).min(2)];
+    let car = |s: f64, d: f64, speed: f64| Kinematics { s, d, speed };
+    let maybe = |x: f64, p: f64, k: Kinematics| (x < p).then_some(k);
+    let ego_speed = 5.0 + 25.0 * next();
+    let ego = Player {
+        now: car(0.0, -4.0, ego_speed),
+        weights: CostWeights::for_style(style(next())),
+        bounds: SpeedBounds { min: 0.0, max: 20.0 + 10.0 * next() },
+    };
+    let leader = maybe(next(), 0.7, car(6.0 + 80.0 * next(), -4.0, 30.0 * next()));
+    let keep = LaneOption { sigma: 0, centre: -4.0, speed_limit: ego.bounds.max, leader, lead: leader, adjacent: None };
+    let mut side = |sigma: i8, centre: f64| -> Option<LaneOption> {
+        if next() < 0.2 {
+            return None;
+        }
+        let adjacent = (next() < 0.85).then(|| {
+            let now = car(-40.0 + 80.0 * next(), centre, 5.0 + 25.0 * next());
+            let ahead = maybe(next(), 0.5, car(now.s + 8.0 + 60.0 * next(), centre, 30.0 * next()));
+            Adjacent {
+                player: Player {
+                    now,
+                    weights: CostWeights::for_style(style(next())),
+                    bounds: SpeedBounds { min: 0.0, max: 20.0 + 10.0 * next() },
+                },
+                leader: ahead,
+                lead: ahead,
+            }
+        });
+        let lead = maybe(next(), 0.5, car(10.0 + 70.0 * next(), centre, 30.0 * next()));
+        Some(LaneOption { sigma, centre, speed_limit: 20.0 + 10.0 * next(), leader: None, lead, adjacent })
+    };
+    let sides = [side(-1, 0.0), side(1, -8.0)];
+    let committed = match next() {
+        x if x < 0.1 => Some(-1),
+        x if x < 0.2 => Some(1),
+        _ => None,
+    };
+    Situation { ego, keep, sides, committed, lane_width: 4.0, car_length: 5.0, period: 0.1 }
+}
+
+#[test]
+fn the_fast_search_decides_exactly_as_the_full_tables_do() {
+    // The straightforward search fills both tables; the fast one computes EC's costs only
+    // where the equilibrium search reads them. Same decisions, bit for bit.
+    let mut seed = 2024u64;
+    let mut next = || {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut lane_changes = 0;
+    for _ in 0..1500 {
+        let situation = random_situation(&mut next);
+        for tolerance in [0.0, 0.1] {
+            let mut params = DecisionParams::default();
+            params.game.follower_tolerance = tolerance;
+            for game in Game::ALL {
+                let fast = situation.decide(game, &params);
+                let full = situation.decide_reading(game, &params, Needs::All);
+                assert_eq!(fast, full, "{game:?}, tolerance {tolerance}: {situation:?}");
+                lane_changes += usize::from(fast.lane_change != LaneChange::Keep);
+            }
+        }
+    }
+    assert!(lane_changes > 500, "the situations exercise lane changes too: {lane_changes}");
 }

@@ -38,32 +38,32 @@ def single(connect: str, seconds: float) -> float:
     return steps * env.dt / elapsed
 
 
+def rounds_per_second(step, seconds: float) -> float:
+    """Calls ``step()`` for ``seconds`` wall seconds; returns calls per second."""
+    rounds = 0
+    started = time.perf_counter()
+    while time.perf_counter() - started < seconds:
+        step()
+        rounds += 1
+    return rounds / (time.perf_counter() - started)
+
+
 def batched(connect: str, num_envs: int, seconds: float) -> float:
     envs = highway_arena.batch_env("highway", num_envs=num_envs, connect=connect)
     envs.reset(seed=0)
     actions = [{"ego_0": 1} for _ in range(num_envs)]
-    rounds = 0
-    started = time.perf_counter()
-    while time.perf_counter() - started < seconds:
-        envs.step(actions)
-        rounds += 1
-    elapsed = time.perf_counter() - started
+    rate = rounds_per_second(lambda: envs.step(actions), seconds)
     envs.close()
-    return rounds * num_envs * envs.dt / elapsed
+    return rate * num_envs * envs.dt
 
 
 def vectorised(connect: str, num_envs: int, seconds: float) -> float:
     envs = highway_arena.vector_env("highway", num_envs=num_envs, connect=connect)
     envs.reset(seed=0)
     actions = [1] * num_envs
-    rounds = 0
-    started = time.perf_counter()
-    while time.perf_counter() - started < seconds:
-        envs.step(actions)
-        rounds += 1
-    elapsed = time.perf_counter() - started
+    rate = rounds_per_second(lambda: envs.step(actions), seconds)
     envs.close()
-    return rounds * num_envs * envs.dt / elapsed
+    return rate * num_envs * envs.dt
 
 
 def envpool_rate(num_envs: int, threads: int, seconds: float) -> float:
@@ -74,14 +74,9 @@ def envpool_rate(num_envs: int, threads: int, seconds: float) -> float:
     envs = envpool.make("Highway-v0", env_type="gymnasium", num_envs=num_envs, num_threads=threads)
     envs.reset()
     actions = np.ones(num_envs, dtype=np.int32)
-    rounds = 0
-    started = time.perf_counter()
-    while time.perf_counter() - started < seconds:
-        envs.step(actions)
-        rounds += 1
-    elapsed = time.perf_counter() - started
+    rate = rounds_per_second(lambda: envs.step(actions), seconds)
     envs.close()
-    return rounds * num_envs / elapsed
+    return rate * num_envs
 
 
 def main() -> int:

@@ -166,6 +166,8 @@ pub struct World {
     order: Vec<u32>,
     /// Scratch of `decide`: one decision per vehicle.
     decisions: Vec<Decision>,
+    /// Threads for the game-theoretic cars' decisions (`set_decision_threads`).
+    decision_threads: usize,
 }
 
 impl World {
@@ -183,6 +185,7 @@ impl World {
             rng: ChaCha8Rng::seed_from_u64(seed),
             order: Vec::new(),
             decisions: Vec::new(),
+            decision_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
         }
     }
 
@@ -363,15 +366,23 @@ impl World {
     fn decide(&mut self) {
         let mut decisions = std::mem::take(&mut self.decisions);
         decisions.clear();
+        let leaders = self.in_parallel(|world, index| !world.is_follower(index));
         for index in 0..self.vehicles.len() {
-            let decision = if self.is_follower(index) { Decision::Accel(0.0) } else { self.decide_one(index) };
+            let decision = match leaders.iter().find(|(i, _)| *i == index) {
+                Some((_, decided)) => decided.clone(),
+                None if self.is_follower(index) => Decision::Accel(0.0),
+                None => self.decide_one(index),
+            };
             if let Some((accel, change)) = self.announced(index, &decision) {
                 self.scene.record_decision(VehicleId(index as u32), accel, change);
             }
             decisions.push(decision);
         }
+        let followers = self.in_parallel(|world, index| world.is_follower(index));
         for (index, decision) in decisions.iter_mut().enumerate() {
-            if self.is_follower(index) {
+            if let Some((_, decided)) = followers.iter().find(|(i, _)| *i == index) {
+                *decision = decided.clone();
+            } else if self.is_follower(index) {
                 *decision = self.decide_one(index);
             }
         }
@@ -379,6 +390,37 @@ impl World {
             self.apply(VehicleId(index as u32), decision);
         }
         self.decisions = decisions;
+    }
+
+    /// The decisions of the game-theoretic cars that `pick` selects, made on
+    /// `decision_threads` threads when there are two or more of them (each reads the
+    /// scene only, so the bits do not depend on the threads); empty otherwise, and the
+    /// caller decides them in turn.
+    fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Vec<(usize, Decision)> {
+        let gt: Vec<usize> = (0..self.vehicles.len())
+            .filter(|&i| self.vehicles[i].status == Status::Driving && matches!(self.vehicles[i].driver, Driver::Gt(_)))
+            .filter(|&i| pick(self, i))
+            .collect();
+        if self.decision_threads < 2 || gt.len() < 2 {
+            return Vec::new();
+        }
+        let chunk = gt.len().div_ceil(self.decision_threads);
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = gt
+                .chunks(chunk)
+                .map(|part| scope.spawn(move || part.iter().map(|&i| (i, self.decide_one(i))).collect::<Vec<_>>()))
+                .collect();
+            // A panicking thread leaves its cars to be decided in turn, where the panic
+            // then surfaces on this thread.
+            handles.into_iter().filter_map(|handle| handle.join().ok()).flatten().collect()
+        })
+    }
+
+    /// How many threads the game-theoretic cars of one control period may decide on
+    /// (default: the machine's cores; 1 decides them in turn). The results are the same
+    /// bits either way.
+    pub fn set_decision_threads(&mut self, threads: usize) {
+        self.decision_threads = threads.max(1);
     }
 
     fn is_follower(&self, index: usize) -> bool {

@@ -191,3 +191,17 @@ fn a_stackelberg_follower_answers_its_leaders_decision_of_this_period() {
     assert_eq!(announced.0, leader.decision.accel);
     assert!(scene.car(ac).decided.is_none(), "followers announce nothing");
 }
+
+#[test]
+fn game_theoretic_cars_deciding_on_several_threads_give_the_same_bits_as_in_turn() {
+    let text = crate::scenario::BUILTIN.iter().find(|(name, ..)| *name == "highway-gt").unwrap().2;
+    let scenario = Scenario::parse("highway-gt.toml", text, &[]).unwrap();
+    let run = |threads| {
+        let mut world = scenario.build(9);
+        world.set_decision_threads(threads);
+        trajectories(world, 400)
+    };
+    let alone = run(1);
+    assert_eq!(alone, run(2));
+    assert_eq!(alone, run(3));
+}

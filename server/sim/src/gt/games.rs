@@ -321,6 +321,13 @@ impl SideGame {
     }
 }
 
+/// AC's cost terms that do not depend on EC's action (`Situation::ac_terms`).
+struct AcTerms {
+    safety_weight: f64,
+    comfort: Vec<f64>,
+    efficiency: Vec<Vec<f64>>,
+}
+
 /// What one cell of a side's tables reads.
 struct Cell<'a> {
     samples: &'a Samples,
@@ -424,6 +431,7 @@ impl Situation {
         // AC's reply nor in its follower set, and is not computed (`Needs::All` computes
         // every cell: the reference).
         let floors = self.ac_floors(&cell, &ac_actions);
+        let terms = self.ac_terms(&cell, &ac_actions);
         let mut by_floor: Vec<usize> = (0..cols).collect();
         by_floor.sort_by(|&a, &b| floors[a].total_cmp(&floors[b]).then(a.cmp(&b)));
         let tolerance = match needs {
@@ -454,7 +462,10 @@ impl Situation {
                     if floors[col] > bound {
                         break;
                     }
-                    let cost = self.ac_entry(&cell, row, col, sigma, ac_actions[col]);
+                    let cost = match &terms {
+                        Some(terms) => self.ac_lane_change_entry(&cell, row, col, terms),
+                        None => self.ac_entry(&cell, row, col, sigma, ac_actions[col]),
+                    };
                     replies[col] = cost;
                     if cost < best.0 || (cost == best.0 && col < best.1) {
                         best = (cost, col);
@@ -540,6 +551,49 @@ impl Situation {
             ac_leader: constant_speed(p, adjacent.and_then(|a| a.leader)),
             ac_lead: constant_speed(p, adjacent.and_then(|a| a.lead)),
         }
+    }
+
+    /// AC's weighted comfort per action and weighted efficiency per action and sample,
+    /// for `ac_lane_change_entry`: row-independent when no lead-car cap can make AC's
+    /// efficiency depend on EC (`lead_range` 0); `None` otherwise.
+    fn ac_terms(&self, cell: &Cell, ac_actions: &[f64]) -> Option<AcTerms> {
+        let (samples, c) = (cell.samples, &cell.params.costs);
+        let adj = cell.option.and_then(|o| o.adjacent)?;
+        if c.lead_range > 0.0 || samples.ac.len() != ac_actions.len() {
+            return None;
+        }
+        let w = &adj.player.weights;
+        let limit = adj.player.bounds.max;
+        let comfort = ac_actions.iter().map(|&a| w.comfort * costs::comfort(c, 0, a, 0.0)).collect();
+        let efficiency = samples
+            .ac
+            .iter()
+            .map(|path| {
+                path.iter()
+                    .enumerate()
+                    .map(|(k, &ac)| {
+                        // As `ac_cost` computes v-bar for a lane change with the cap off.
+                        let v_bar = costs::target_speed(c, ac, limit, samples.ac_lead.get(k).copied()).min(limit);
+                        w.efficiency * costs::efficiency(ac.speed, v_bar)
+                    })
+                    .collect()
+            })
+            .collect();
+        Some(AcTerms { safety_weight: w.safety, comfort, efficiency })
+    }
+
+    /// `ac_entry` for a lane-change row from precomputed terms: the same sums in the same
+    /// order, so the same bits (the differential test compares it with `ac_entry`).
+    fn ac_lane_change_entry(&self, cell: &Cell, row: usize, col: usize, terms: &AcTerms) -> f64 {
+        let c = &cell.params.costs;
+        let (ec_path, ac_path) = (&cell.samples.ec[row], &cell.samples.ac[col]);
+        let (comfort, efficiency) = (terms.comfort[col], &terms.efficiency[col]);
+        let mut sum = 0.0;
+        for (k, (&ego, &ac)) in ec_path.iter().zip(ac_path).enumerate() {
+            let lateral = costs::lateral_safety(c, self.car_length, ego, ac);
+            sum += terms.safety_weight * lateral + comfort + efficiency[k];
+        }
+        sum / ec_path.len().max(1) as f64
     }
 
     /// Per AC action, a lower bound on AC's cost in any lane-change row: its cost with the

@@ -321,6 +321,9 @@ impl SideGame {
     }
 }
 
+/// AC's cells computed at once (`f64x4`).
+const LANES: usize = 4;
+
 /// AC's cost terms that do not depend on EC's action (`Situation::ac_terms`).
 struct AcTerms {
     safety_weight: f64,
@@ -458,18 +461,24 @@ impl Situation {
             } else {
                 let mut best = (f64::INFINITY, usize::MAX);
                 let mut bound = f64::INFINITY;
-                for &col in &by_floor {
-                    if floors[col] > bound {
-                        break;
-                    }
-                    let cost = match &terms {
-                        Some(terms) => self.ac_lane_change_entry(&cell, row, col, terms),
-                        None => self.ac_entry(&cell, row, col, sigma, ac_actions[col]),
+                let mut next = 0;
+                while next < cols && floors[by_floor[next]] <= bound {
+                    // Up to four columns at once; those past the bound cost more than it,
+                    // so computing them changes no reply and no follower set.
+                    let batch = &by_floor[next..(next + LANES).min(cols)];
+                    next += batch.len();
+                    let costs = match &terms {
+                        Some(terms) => self.ac_lane_change_entries(&cell, row, batch, terms),
+                        None => std::array::from_fn(|i| {
+                            batch.get(i).map_or(0.0, |&col| self.ac_entry(&cell, row, col, sigma, ac_actions[col]))
+                        }),
                     };
-                    replies[col] = cost;
-                    if cost < best.0 || (cost == best.0 && col < best.1) {
-                        best = (cost, col);
-                        bound = cost + tolerance * cost.abs(); // eq. (17b)'s set, as `stackelberg` reads it
+                    for (&col, &cost) in batch.iter().zip(&costs) {
+                        replies[col] = cost;
+                        if cost < best.0 || (cost == best.0 && col < best.1) {
+                            best = (cost, col);
+                            bound = cost + tolerance * cost.abs(); // eq. (17b)'s set, as `stackelberg` reads it
+                        }
                     }
                 }
                 best.1
@@ -582,18 +591,36 @@ impl Situation {
         Some(AcTerms { safety_weight: w.safety, comfort, efficiency })
     }
 
-    /// `ac_entry` for a lane-change row from precomputed terms: the same sums in the same
-    /// order, so the same bits (the differential test compares it with `ac_entry`).
-    fn ac_lane_change_entry(&self, cell: &Cell, row: usize, col: usize, terms: &AcTerms) -> f64 {
+    /// `ac_entry` for a lane-change row and up to `LANES` columns at once, from
+    /// precomputed terms: the same operations in the same order in each SIMD lane, so
+    /// the same bits as `ac_entry` (the differential test compares the two).
+    fn ac_lane_change_entries(&self, cell: &Cell, row: usize, cols: &[usize], terms: &AcTerms) -> [f64; LANES] {
+        use wide::{CmpGe, CmpLt, f64x4};
         let c = &cell.params.costs;
-        let (ec_path, ac_path) = (&cell.samples.ec[row], &cell.samples.ac[col]);
-        let (comfort, efficiency) = (terms.comfort[col], &terms.efficiency[col]);
-        let mut sum = 0.0;
-        for (k, (&ego, &ac)) in ec_path.iter().zip(ac_path).enumerate() {
-            let lateral = costs::lateral_safety(c, self.car_length, ego, ac);
-            sum += terms.safety_weight * lateral + comfort + efficiency[k];
+        let ec_path = &cell.samples.ec[row];
+        // Unused lanes repeat the first column; their results are dropped.
+        let lane = |i: usize| cols.get(i).copied().unwrap_or(cols[0]);
+        let paths: [&Vec<Kinematics>; LANES] = std::array::from_fn(|i| &cell.samples.ac[lane(i)]);
+        let splat = f64x4::splat;
+        let comfort = f64x4::new(std::array::from_fn(|i| terms.comfort[lane(i)]));
+        let (zero, one) = (splat(0.0), splat(1.0));
+        let mut sum = zero;
+        for (k, ego) in ec_path.iter().enumerate() {
+            let ac = |field: fn(&Kinematics) -> f64| f64x4::new(std::array::from_fn(|i| field(&paths[i][k])));
+            let (s, d, speed) = (ac(|a| a.s), ac(|a| a.d), ac(|a| a.speed));
+            // eq. (12) as costs::lateral_safety computes it, lane by lane.
+            let ego_front = splat(ego.s).cmp_ge(s);
+            let dv = ego_front.blend(splat(ego.speed) - speed, speed - splat(ego.speed));
+            let lambda = dv.cmp_lt(zero).blend(one, zero);
+            let (ds, dd) = (splat(ego.s) - s, splat(ego.d) - d);
+            let separation = (ds * ds + dd * dd).sqrt() - splat(self.car_length);
+            let gap = separation.max(zero);
+            let proximity = splat(c.kappa_s_lat) / (gap * gap + splat(c.epsilon)) * (one + (-separation).max(zero));
+            let lateral = splat(c.kappa_v_lat) * lambda * dv * dv + proximity;
+            let efficiency = f64x4::new(std::array::from_fn(|i| terms.efficiency[lane(i)][k]));
+            sum += splat(terms.safety_weight) * lateral + comfort + efficiency;
         }
-        sum / ec_path.len().max(1) as f64
+        (sum / splat(ec_path.len().max(1) as f64)).to_array()
     }
 
     /// Per AC action, a lower bound on AC's cost in any lane-change row: its cost with the

@@ -125,6 +125,21 @@ pub struct Record {
     /// Decisions of the run's game-theoretic cars taken without a pure Nash equilibrium
     /// (they then keep their current lane decision).
     pub inexact_decisions: u32,
+    /// Per game-theoretic car, by role: what its planning did over the run.
+    pub diagnostics: BTreeMap<String, GtReport>,
+}
+
+/// What one game-theoretic car's planning did over a run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GtReport {
+    /// Control periods planned.
+    pub plans: u32,
+    /// Mean interior-point iterations of its MPC's QPs.
+    pub mean_qp_iterations: f64,
+    /// Plans that fell back to the safe command.
+    pub fallbacks: u32,
+    /// Decisions taken without a pure Nash equilibrium.
+    pub inexact: u32,
 }
 
 /// The state of the run at one control instant.
@@ -229,7 +244,19 @@ pub fn run_world(
             _ => 0,
         })
         .sum();
-    let record = summarise(scenario, style, game, &trace, collision, world.road().lane_width(), inexact);
+    let mut record = summarise(scenario, style, game, &trace, collision, world.road().lane_width(), inexact);
+    for ((_, role), &id) in roles.iter().zip(&ids) {
+        if let Driver::Gt(gt) = &world.vehicle(id).driver {
+            let d = &gt.diagnostics;
+            let report = GtReport {
+                plans: d.plans,
+                mean_qp_iterations: d.iterations_total as f64 / f64::from(d.plans.max(1)),
+                fallbacks: d.fallbacks,
+                inexact: d.inexact,
+            };
+            record.diagnostics.insert(role.to_string(), report);
+        }
+    }
     (record, trace)
 }
 
@@ -306,6 +333,7 @@ fn summarise(
         collision,
         rms_cost: rms(trace),
         inexact_decisions,
+        diagnostics: BTreeMap::new(),
     }
 }
 

@@ -46,6 +46,7 @@ pub fn run(args: PaperArgs) -> anyhow::Result<()> {
         args.follower_tolerance
     );
     let options = PaperOptions { follower_tolerance: args.follower_tolerance, ..PaperOptions::default() };
+    let started = std::time::Instant::now();
     let mut runs = Vec::new();
     for scenario in PaperScenario::ALL {
         for style in Style::ALL {
@@ -57,6 +58,7 @@ pub fn run(args: PaperArgs) -> anyhow::Result<()> {
         }
     }
     print!("{}", tables(&runs));
+    println!("\n12 runs simulated in {:.2} s (wall clock; plots follow)", started.elapsed().as_secs_f64());
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
         .map_err(|_| anyhow::anyhow!("the embedded DejaVu Sans font did not load"))?;
@@ -132,6 +134,14 @@ fn tables(runs: &[Run]) -> String {
                 side(se)
             );
             let _ = writeln!(out, "| {} | collision | {} | no | {} | no |", style.name(), crash(ne), crash(se));
+            let iterations = |r: &Run| r.record.diagnostics.get("EC").map_or(0.0, |report| report.mean_qp_iterations);
+            let _ = writeln!(
+                out,
+                "| {} | EC's QP iterations (mean) | {:.1} | - | {:.1} | - |",
+                style.name(),
+                iterations(ne),
+                iterations(se)
+            );
             let inexact = |r: &Run| r.record.inexact_decisions;
             let _ =
                 writeln!(out, "| {} | inexact decisions | {} | - | {} | - |", style.name(), inexact(ne), inexact(se));

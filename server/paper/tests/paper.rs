@@ -108,10 +108,14 @@ fn a_run_is_reproducible_to_the_bit_and_serialises_as_documented() {
     assert_eq!(&again, record(PaperScenario::B, Style::Normal, Game::Stackelberg));
     let json = serde_json::to_value(record(PaperScenario::B, Style::Conservative, Game::Nash)).unwrap();
     let keys = ["scenario", "style", "game", "t_c", "gaps_at_t_c", "speeds_at_t_c", "lane_change", "collision"];
-    for key in keys.into_iter().chain(["inexact_decisions"]) {
+    for key in keys.into_iter().chain(["inexact_decisions", "diagnostics"]) {
         assert!(json.get(key).is_some(), "missing {key}: {json}");
     }
     assert!(json["t_c"].is_null());
+    let ec = &json["diagnostics"]["EC"];
+    assert_eq!(ec["plans"].as_u64(), Some(100), "B runs 10 s of 0.1 s periods: {json}");
+    assert!(ec["mean_qp_iterations"].as_f64().is_some_and(|n| n > 0.0) && ec["fallbacks"].as_u64() == Some(0));
+    assert_eq!(json["diagnostics"].as_object().map(|d| d.len()), Some(3), "EC, AC1, AC2");
     for key in ["safety", "comfort", "efficiency"] {
         assert!(json["rms_cost"][key].as_f64().is_some_and(|v| v > 0.0), "rms_cost.{key}: {json}");
     }

@@ -63,6 +63,10 @@ pub struct Diagnostics {
     /// Decisions the Nash search took without a pure equilibrium (it then keeps the
     /// current lane decision) since the start.
     pub inexact: u32,
+    /// Control periods planned since the start.
+    pub plans: u32,
+    /// Interior-point iterations of every QP since the start.
+    pub iterations_total: u64,
 }
 
 /// A `gt` driver's settings and memory: plain data, part of the world's state.
@@ -367,6 +371,8 @@ pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) 
             driver.plan = solution.plan;
             driver.diagnostics.fallback = None;
             driver.diagnostics.iterations = solution.iterations;
+            driver.diagnostics.iterations_total += u64::from(solution.iterations);
+            driver.diagnostics.plans += 1;
             let command = Command { accel: decision.accel, preview: solution.preview };
             GtStep { command, change_to: (target != car.target_lane).then_some(target), driver }
         }
@@ -388,6 +394,7 @@ fn fallback(scene: &Scene, id: VehicleId, mut driver: GtDriver, error: &MpcError
     driver.diagnostics.fallback = Some(error.to_string());
     driver.diagnostics.fallbacks += 1;
     driver.diagnostics.iterations = 0;
+    driver.diagnostics.plans += 1;
     let change_to = (car.target_lane != car.lane).then_some(car.lane);
     GtStep { command: Command { accel, preview }, change_to, driver }
 }

@@ -118,3 +118,37 @@ async fn a_scenario_file_is_served_under_the_name_it_declares() {
     let listed = lines.iter().find(|l| l.starts_with("scenarios:")).expect("the scenarios line");
     assert!(listed.contains("declared") && !listed.contains("file-stem"), "{listed}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_echo_key_answers_at_most_its_cap_however_much_is_asked() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let mut server = Command::new(env!("CARGO_BIN_EXE_arena-server"))
+        .args(["--listen", &endpoint])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start arena-server");
+    let mut lines = BufReader::new(server.stdout.take().expect("stdout")).lines();
+    let banner = lines.next().expect("a first line").expect("utf-8");
+    let server_id =
+        banner.split("server id ").nth(1).and_then(|rest| rest.split(')').next()).expect("an id").to_string();
+    let flags = ConnectionFlags::connecting_to(&endpoint);
+    let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
+    let key = keys::server_echo("arena", &server_id).unwrap();
+    let mut sizes = Vec::new();
+    for asked in [100u32, 16 * 1024 * 1024] {
+        for _ in 0..100 {
+            let replies =
+                session.get(&key).payload(asked.to_le_bytes().to_vec()).timeout(Duration::from_secs(5)).await.unwrap();
+            if let Ok(reply) = replies.recv_async().await {
+                sizes.push(reply.result().expect("ok reply").payload().len());
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+    session.close().await.unwrap();
+    server.kill().unwrap();
+    server.wait().unwrap();
+    // A 4-byte request cannot ask for megabytes: 64 KiB at most.
+    assert_eq!(sizes, [100, arena_server::transport::ECHO_MAX_REPLY]);
+}

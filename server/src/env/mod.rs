@@ -75,6 +75,10 @@ pub struct Env {
     cycles: u32,
 }
 
+/// The largest RGB frame (bytes) a render reply carries: the message limit less room for
+/// the envelope.
+const MAX_FRAME_BYTES: usize = arena_protocol::MAX_MESSAGE_BYTES - 64 * 1024;
+
 fn error(code: ErrorCode, message: impl Into<String>) -> ErrorReply {
     ErrorReply { code, message: message.into(), env_usable: true }
 }
@@ -102,6 +106,17 @@ impl Env {
             return Err(error(
                 ErrorCode::InvalidScenario,
                 format!("render_size {render_size:?} must be within 16..=4096"),
+            ));
+        }
+        let frame_bytes = u64::from(render_size.0) * u64::from(render_size.1) * 3;
+        if frame_bytes > MAX_FRAME_BYTES as u64 {
+            return Err(error(
+                ErrorCode::InvalidScenario,
+                format!(
+                    "render_size {render_size:?} makes frames of {frame_bytes} bytes, more than a reply may carry \
+                     ({MAX_FRAME_BYTES} of the {} byte message limit); ask for at most about 2300 x 2300",
+                    arena_protocol::MAX_MESSAGE_BYTES
+                ),
             ));
         }
         let agents = scenario

@@ -347,3 +347,24 @@ fn a_randomised_scenario_repeats_an_episode_bit_for_bit_for_its_seed_and_varies_
         assert_ne!(a[0], b[0], "{name}: two seeds, one first observation");
     }
 }
+
+#[test]
+fn a_render_size_whose_frames_could_not_travel_is_refused_at_creation() {
+    let create = |size| {
+        Env::new(
+            builtin("merge").unwrap().unwrap(),
+            &CreateOptions { render_size: Some(size), ..CreateOptions::default() },
+            1,
+        )
+    };
+    let refused = create((4096, 4096)).unwrap_err();
+    assert_eq!(refused.code, ErrorCode::InvalidScenario);
+    assert!(refused.message.contains("50331648 bytes") && refused.message.contains("message limit"), "{refused}");
+    let mut largest = create((2300, 2300)).unwrap();
+    largest.reset(Some(0), &[]).unwrap();
+    let Frame::Rgb { pixels, .. } = largest.render(RenderMode::RgbArray).unwrap() else { panic!("rgb") };
+    assert!(
+        arena_protocol::encode(&Frame::Rgb { height: 2300, width: 2300, pixels }).len()
+            < arena_protocol::MAX_MESSAGE_BYTES
+    );
+}

@@ -13,6 +13,10 @@ use zenoh::sample::SampleKind;
 
 pub use registry::{Limits, Registry, Scenarios};
 
+/// The largest echo reply (bytes): more than any single-env step reply `arena bench`
+/// compares it with (about 1 KB on highway.toml).
+pub const ECHO_MAX_REPLY: usize = 64 * 1024;
+
 /// A running server. Dropping it undeclares everything; `close` also ends the session.
 pub struct Server {
     session: zenoh::Session,
@@ -51,13 +55,14 @@ impl Server {
             .await?;
 
         // A raw reply of the size the request asks for (its first 4 bytes, u32 LE,
-        // capped at the message limit): `arena bench` measures Zenoh itself with it.
+        // capped at `ECHO_MAX_REPLY`): `arena bench` measures Zenoh itself with it. The
+        // cap keeps a 4-byte request from asking for megabytes (amplification).
         let echo = session
             .declare_queryable(keys::server_echo(prefix, &server_id)?)
             .callback(|query| {
                 let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
                 let asked = bytes.get(..4).and_then(|b| b.try_into().ok()).map_or(0, u32::from_le_bytes) as usize;
-                let reply = vec![0u8; asked.min(arena_protocol::MAX_MESSAGE_BYTES)];
+                let reply = vec![0u8; asked.min(ECHO_MAX_REPLY)];
                 if let Err(e) = query.reply(query.key_expr().clone(), reply).wait() {
                     eprintln!("arena-server: could not send an echo reply: {e}");
                 }

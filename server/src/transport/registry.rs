@@ -240,6 +240,10 @@ impl Registry {
         source: ScenarioSource,
         options: &CreateOptions,
     ) -> Result<ReplyBody, ErrorReply> {
+        // Refused before any work: a full server parses and builds nothing.
+        if lock(&self.envs).len() >= self.limits.max_envs {
+            return Err(self.too_many_envs());
+        }
         let overrides: Vec<(String, toml::Value)> =
             options.overrides.iter().map(|(k, v)| (k.clone(), to_toml(v))).collect();
         let (file, text) = match &source {
@@ -259,19 +263,19 @@ impl Registry {
         let env = Env::new(scenario, options, id.0 as u64)?;
         let specs = env.specs();
         let mut envs = lock(&self.envs);
+        // Again under the lock: another create may have taken the last place meanwhile.
         if envs.len() >= self.limits.max_envs {
-            return Err(error(
-                ErrorCode::TooManyEnvs,
-                format!(
-                    "this server holds its limit of {} envs; close one or use another server",
-                    self.limits.max_envs
-                ),
-                true,
-            ));
+            return Err(self.too_many_envs());
         }
         let slot = Slot { env, owner, last: None, last_used: Instant::now() };
         envs.insert(id, Arc::new(Mutex::new(slot)));
         Ok(ReplyBody::Created { env: id, specs })
+    }
+
+    fn too_many_envs(&self) -> ErrorReply {
+        let message =
+            format!("this server holds its limit of {} envs; close one or use another server", self.limits.max_envs);
+        error(ErrorCode::TooManyEnvs, message, true)
     }
 
     fn slot(&self, client: ClientId, env: EnvId) -> Result<Arc<Mutex<Slot>>, ErrorReply> {

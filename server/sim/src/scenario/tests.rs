@@ -229,3 +229,37 @@ fn bad_vary_and_reward_tables_are_refused_with_the_key() {
     let bad_crash = format!("{GOOD}\n[reward]\ncrash = 3.0\n");
     assert!(error(&bad_crash).contains("reward.crash"));
 }
+
+mod fuzz {
+    //! Scenario text mutated from the shipped files: the loader answers Ok or an error
+    //! for every input, and never panics.
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+        #[test]
+        fn mutated_scenario_files_load_or_are_refused(
+            which in 0usize..BUILTIN.len(),
+            edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<char>(), 0u8..3), 1..8),
+        ) {
+            let mut text: Vec<char> = BUILTIN[which].2.chars().collect();
+            for (at, c, kind) in edits {
+                let i = at.index(text.len().max(1)).min(text.len());
+                match kind {
+                    0 if i < text.len() => text[i] = c,
+                    1 => text.insert(i, c),
+                    _ if i < text.len() => { text.remove(i); }
+                    _ => {}
+                }
+            }
+            let text: String = text.into_iter().collect();
+            if let Ok(scenario) = Scenario::parse("fuzz.toml", &text, &[]) {
+                // What validates also builds.
+                let world = scenario.build(0);
+                prop_assert!(world.vehicles().len() >= scenario.vehicles.len());
+            }
+        }
+    }
+}

@@ -65,7 +65,7 @@ pub struct ConnectionFlags {
     /// A Zenoh configuration file (JSON5); the flags above are applied on top of it.
     #[arg(long, value_name = "FILE")]
     pub zenoh_config: Option<PathBuf>,
-    /// Turn on multicast scouting, to find peers on the LAN without endpoints.
+    /// Turn on multicast and gossip scouting, to find peers on the LAN without endpoints.
     #[arg(long)]
     pub scout: bool,
     /// Seconds a client waits for each reply before retrying.
@@ -138,13 +138,18 @@ impl ConnectionFlags {
         let quoted =
             |items: &[String]| format!("[{}]", items.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(","));
         set(&mut config, "mode", format!("{:?}", self.mode.name()))?;
-        if !listen.is_empty() {
+        // A client listens on nothing unless told to: left to Zenoh, a peer listens on
+        // every interface and clients connect to each other over them.
+        if !listen.is_empty() || role == Role::Client {
             set(&mut config, "listen/endpoints", quoted(&listen))?;
         }
         if !connect.is_empty() {
             set(&mut config, "connect/endpoints", quoted(&connect))?;
         }
         set(&mut config, "scouting/multicast/enabled", self.scout.to_string())?;
+        // No gossip either: a session talks to the endpoints it was given, not to the
+        // peers other sessions know of (--scout turns discovery back on).
+        set(&mut config, "scouting/gossip/enabled", self.scout.to_string())?;
         Ok(config)
     }
 }

@@ -278,6 +278,10 @@ async fn every_kind_of_bad_input_gets_its_coded_error_and_the_server_keeps_servi
     let close_again =
         Request { version: PROTOCOL_VERSION, client: client.id(), body: RequestBody::Close { env: continuous.id() } };
     assert_eq!(raw_code(&raw(&harness, &encode(&close_again)).await), ErrorCode::EnvClosed);
+    // To anyone else a closed env looks like one that never existed.
+    let probe =
+        Request { version: PROTOCOL_VERSION, client: stranger, body: RequestBody::Close { env: continuous.id() } };
+    assert_eq!(raw_code(&raw(&harness, &encode(&probe)).await), ErrorCode::UnknownEnv);
 
     // 18: a stale sequence number.
     let step = env.step(meta("ec_0", 1)).await.unwrap();

@@ -3,7 +3,7 @@
 //! ownership of envs, sequence numbers that make retries safe, env limits and
 //! reclaiming — so each can be tested without a network and the queryable stays thin.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -105,26 +105,27 @@ pub struct Registry {
 /// `UnknownEnv`; bounded, oldest forgotten first, so a long-lived server does not grow.
 #[derive(Default)]
 struct Tombstones {
-    ids: HashSet<EnvId>,
+    owners: HashMap<EnvId, ClientId>,
     order: std::collections::VecDeque<EnvId>,
 }
 
 impl Tombstones {
     const CAPACITY: usize = 1 << 16;
 
-    fn insert(&mut self, id: EnvId) {
-        if self.ids.insert(id) {
+    fn insert(&mut self, id: EnvId, owner: ClientId) {
+        if self.owners.insert(id, owner).is_none() {
             self.order.push_back(id);
         }
         while self.order.len() > Self::CAPACITY {
             if let Some(old) = self.order.pop_front() {
-                self.ids.remove(&old);
+                self.owners.remove(&old);
             }
         }
     }
 
-    fn contains(&self, id: &EnvId) -> bool {
-        self.ids.contains(id)
+    /// Whether `id` was an env of `client` that has been closed.
+    fn closed_for(&self, id: &EnvId, client: ClientId) -> bool {
+        self.owners.get(id) == Some(&client)
     }
 }
 
@@ -283,7 +284,8 @@ impl Registry {
         match found {
             // Another client's env looks exactly like one that does not exist.
             Some(slot) if lock(&slot).owner == client => Ok(slot),
-            None if lock(&self.closed).contains(&env) => {
+            // Only its owner learns that a closed env existed; to anyone else it is unknown.
+            None if lock(&self.closed).closed_for(&env, client) => {
                 Err(error(ErrorCode::EnvClosed, format!("env {env} was closed; create a new one"), false))
             }
             _ => Err(error(ErrorCode::UnknownEnv, format!("no env {env} of yours on this server"), false)),
@@ -375,7 +377,7 @@ impl Registry {
     fn close(&self, client: ClientId, env: EnvId) -> Result<ReplyBody, ErrorReply> {
         self.slot(client, env)?;
         lock(&self.envs).remove(&env);
-        lock(&self.closed).insert(env);
+        lock(&self.closed).insert(env, client);
         Ok(ReplyBody::Closed)
     }
 
@@ -395,9 +397,10 @@ impl Registry {
         let before = envs.len();
         let mut closed = lock(&self.closed);
         envs.retain(|id, slot| {
-            let kept = keep(&lock(slot));
+            let slot = lock(slot);
+            let kept = keep(&slot);
             if !kept {
-                closed.insert(*id);
+                closed.insert(*id, slot.owner);
             }
             kept
         });

@@ -298,14 +298,10 @@ impl Client {
     async fn get_once(&self, key: &str, payload: Vec<u8>) -> Result<Option<Vec<u8>>> {
         let replies =
             self.inner.session.get(key).payload(payload).timeout(self.inner.timeout).await.map_err(zenoh_error)?;
+        // An error reply (Zenoh's own timeout among them) counts as no reply: the request
+        // is retried like a missing one, and `call` says what happened in the end.
         match replies.recv_async().await {
-            Ok(reply) => match reply.result() {
-                Ok(sample) => Ok(Some(sample.payload().to_bytes().into_owned())),
-                Err(err) => Err(ClientError::Zenoh(format!(
-                    "error reply: {}",
-                    String::from_utf8_lossy(&err.payload().to_bytes())
-                ))),
-            },
+            Ok(reply) => Ok(reply.result().ok().map(|sample| sample.payload().to_bytes().into_owned())),
             Err(_) => Ok(None),
         }
     }

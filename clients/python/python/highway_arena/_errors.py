@@ -81,14 +81,6 @@ def clean(message: str) -> str:
 
 def translate(error: _core.ArenaError) -> ArenaError:
     code, message = error.args
-    if code == "Zenoh" and message.endswith("error reply: Timeout"):
-        # Zenoh's own query timeout, reported as an error reply: the server is there
-        # (its queryable is routed) but did not answer in time.
-        return ArenaTimeoutError(
-            "Timeout",
-            "no reply from the arena-server within the timeout: is it still running (not stopped or "
-            "overloaded) and reachable? Pass a larger timeout= if its steps are slow",
-        )
     return _BY_CODE.get(code, ArenaError)(code, clean(message) + _HINTS.get(code, ""))
 
 

@@ -446,24 +446,26 @@ impl Scenario {
             return Ok(self.clone());
         }
         let (file, text, overrides) = &self.source;
-        let mut last = None;
-        for _ in 0..EPISODE_DRAWS {
+        // Only drawn values can be drawn again: with nothing to vary, one attempt.
+        let attempts = if self.vary.is_empty() { 1 } else { EPISODE_DRAWS };
+        let mut attempt = 1;
+        loop {
             let mut all = overrides.clone();
             all.extend(self.vary.iter().map(|(key, variation)| (key.clone(), variation.draw(rng))));
             all.extend(extra.iter().cloned());
             match Scenario::parse(file, text, &all) {
                 Err(error)
-                    if matches!(error.kind, ScenarioErrorKind::Overlap { .. } | ScenarioErrorKind::OffRoad { .. }) =>
+                    if attempt < attempts
+                        && matches!(
+                            error.kind,
+                            ScenarioErrorKind::Overlap { .. } | ScenarioErrorKind::OffRoad { .. }
+                        ) =>
                 {
-                    last = Some(error);
-                    if self.vary.is_empty() {
-                        break;
-                    }
+                    attempt += 1;
                 }
-                other => return other,
+                result => return result,
             }
         }
-        Err(last.unwrap_or_else(|| ScenarioError { file: file.clone(), kind: ScenarioErrorKind::Io("no draw".into()) }))
     }
 
     /// Builds the world at time zero; `seed` drives the random traffic. The named

@@ -365,8 +365,9 @@ pub struct RewardSpec {
 }
 
 impl RewardSpec {
-    /// J_0 by default: about the cost of driving calmly at 5 m/s off the target speed
-    /// in the normal style (docs/rewards.md).
+    /// J_0 by default: what the normal style pays in efficiency alone 11 m/s off its
+    /// target speed (0.2 x 11.2^2); calm driving costs a few units and earns about 0.8
+    /// (docs/rewards.md).
     pub const DEFAULT_COST_SCALE: f64 = 25.0;
 }
 

@@ -190,8 +190,7 @@ impl PayoffTable {
     pub fn stackelberg(&self, tolerance: f64) -> Profile {
         let mut best = (f64::INFINITY, 0, 0);
         for row in 0..self.rows {
-            let floor = self.ac(row, self.best_reply(row));
-            let bound = floor + tolerance * floor.abs();
+            let bound = follower_bound(self.ac(row, self.best_reply(row)), tolerance);
             let mut worst = (f64::NEG_INFINITY, 0);
             for col in 0..self.cols {
                 if self.ac(row, col) <= bound && self.ec(row, col) > worst.0 {
@@ -324,11 +323,38 @@ impl SideGame {
 /// AC's cells computed at once (`f64x4`).
 const LANES: usize = 4;
 
-/// AC's cost terms that do not depend on EC's action (`Situation::ac_terms`).
+/// AC's cost terms that do not depend on EC's action (`Situation::ac_terms`), weighted:
+/// comfort per action; efficiency per action and sample, unless a lead-car cap
+/// (`lead_range` > 0) makes it depend on EC's position.
 struct AcTerms {
     safety_weight: f64,
     comfort: Vec<f64>,
-    efficiency: Vec<Vec<f64>>,
+    efficiency: Option<Vec<Vec<f64>>>,
+}
+
+impl AcTerms {
+    /// Per AC action, a lower bound on AC's cost in any lane-change row: the cost with
+    /// the lateral term at zero (and the efficiency at zero where it is not known),
+    /// summed as `ac_entry` sums. Rounding is monotonic, so it is a bound in floating
+    /// point too.
+    fn floors(&self, samples: usize) -> Vec<f64> {
+        (0..self.comfort.len())
+            .map(|col| {
+                let mut sum = 0.0;
+                for k in 0..samples {
+                    let efficiency = self.efficiency.as_ref().map_or(0.0, |e| e[col][k]);
+                    sum += self.safety_weight * 0.0 + self.comfort[col] + efficiency;
+                }
+                sum / samples.max(1) as f64
+            })
+            .collect()
+    }
+}
+
+/// The most a reply may cost AC and still be in its follower set of eq. (17b), when its
+/// best reply costs `floor`: within (1 + tolerance) of the best.
+fn follower_bound(floor: f64, tolerance: f64) -> f64 {
+    floor + tolerance * floor.abs()
 }
 
 /// What one cell of a side's tables reads.
@@ -433,8 +459,9 @@ impl Situation {
         // never negative, so a column whose bound exceeds the best cost found cannot be
         // AC's reply nor in its follower set, and is not computed (`Needs::All` computes
         // every cell: the reference).
-        let floors = self.ac_floors(&cell, &ac_actions);
         let terms = self.ac_terms(&cell, &ac_actions);
+        let n = samples.ec.first().map_or(0, Vec::len);
+        let floors = terms.as_ref().map_or_else(|| vec![0.0; cols], |terms| terms.floors(n));
         let mut by_floor: Vec<usize> = (0..cols).collect();
         by_floor.sort_by(|&a, &b| floors[a].total_cmp(&floors[b]).then(a.cmp(&b)));
         let tolerance = match needs {
@@ -467,8 +494,8 @@ impl Situation {
                     // so computing them changes no reply and no follower set.
                     let batch = &by_floor[next..(next + LANES).min(cols)];
                     next += batch.len();
-                    let costs = match &terms {
-                        Some(terms) => self.ac_lane_change_entries(&cell, row, batch, terms),
+                    let costs = match terms.as_ref().and_then(|t| Some((t, t.efficiency.as_deref()?))) {
+                        Some((terms, efficiency)) => self.ac_lane_change_entries(&cell, row, batch, terms, efficiency),
                         None => std::array::from_fn(|i| {
                             batch.get(i).map_or(0.0, |&col| self.ac_entry(&cell, row, col, sigma, ac_actions[col]))
                         }),
@@ -477,7 +504,7 @@ impl Situation {
                         replies[col] = cost;
                         if cost < best.0 || (cost == best.0 && col < best.1) {
                             best = (cost, col);
-                            bound = cost + tolerance * cost.abs(); // eq. (17b)'s set, as `stackelberg` reads it
+                            bound = follower_bound(cost, tolerance);
                         }
                     }
                 }
@@ -493,15 +520,16 @@ impl Situation {
         match needs {
             Needs::All | Needs::Replies => {}
             Needs::Nash => {
-                for r in 0..rows {
-                    let col = table.best_reply(r);
+                let mut columns: Vec<usize> = table.replies.clone();
+                columns.sort_unstable();
+                columns.dedup();
+                for col in columns {
                     (0..rows).for_each(|row| wanted[row * cols + col] = true);
                 }
             }
             Needs::Stackelberg(tolerance) => {
                 for row in 0..rows {
-                    let floor = table.ac(row, table.best_reply(row));
-                    let bound = floor + tolerance * floor.abs(); // eq. (17b), as `stackelberg` reads it
+                    let bound = follower_bound(table.ac(row, table.best_reply(row)), tolerance);
                     for col in (0..cols).filter(|&col| table.ac(row, col) <= bound) {
                         wanted[row * cols + col] = true;
                     }
@@ -562,39 +590,43 @@ impl Situation {
         }
     }
 
-    /// AC's weighted comfort per action and weighted efficiency per action and sample,
-    /// for `ac_lane_change_entry`: row-independent when no lead-car cap can make AC's
-    /// efficiency depend on EC (`lead_range` 0); `None` otherwise.
+    /// AC's row-independent cost terms (`AcTerms`); `None` with no adjacent car.
     fn ac_terms(&self, cell: &Cell, ac_actions: &[f64]) -> Option<AcTerms> {
         let (samples, c) = (cell.samples, &cell.params.costs);
         let adj = cell.option.and_then(|o| o.adjacent)?;
-        if c.lead_range > 0.0 || samples.ac.len() != ac_actions.len() {
-            return None;
-        }
         let w = &adj.player.weights;
         let limit = adj.player.bounds.max;
         let comfort = ac_actions.iter().map(|&a| w.comfort * costs::comfort(c, 0, a, 0.0)).collect();
-        let efficiency = samples
-            .ac
-            .iter()
-            .map(|path| {
-                path.iter()
-                    .enumerate()
-                    .map(|(k, &ac)| {
-                        // As `ac_cost` computes v-bar for a lane change with the cap off.
-                        let v_bar = costs::target_speed(c, ac, limit, samples.ac_lead.get(k).copied()).min(limit);
-                        w.efficiency * costs::efficiency(ac.speed, v_bar)
-                    })
-                    .collect()
-            })
-            .collect();
+        let efficiency = (c.lead_range <= 0.0 && samples.ac.len() == ac_actions.len()).then(|| {
+            samples
+                .ac
+                .iter()
+                .map(|path| {
+                    path.iter()
+                        .enumerate()
+                        .map(|(k, &ac)| {
+                            // As `ac_cost` computes v-bar for a lane change with the cap off.
+                            let v_bar = costs::target_speed(c, ac, limit, samples.ac_lead.get(k).copied()).min(limit);
+                            w.efficiency * costs::efficiency(ac.speed, v_bar)
+                        })
+                        .collect()
+                })
+                .collect()
+        });
         Some(AcTerms { safety_weight: w.safety, comfort, efficiency })
     }
 
     /// `ac_entry` for a lane-change row and up to `LANES` columns at once, from
     /// precomputed terms: the same operations in the same order in each SIMD lane, so
     /// the same bits as `ac_entry` (the differential test compares the two).
-    fn ac_lane_change_entries(&self, cell: &Cell, row: usize, cols: &[usize], terms: &AcTerms) -> [f64; LANES] {
+    fn ac_lane_change_entries(
+        &self,
+        cell: &Cell,
+        row: usize,
+        cols: &[usize],
+        terms: &AcTerms,
+        efficiency: &[Vec<f64>],
+    ) -> [f64; LANES] {
         use wide::{CmpGe, CmpLt, f64x4};
         let c = &cell.params.costs;
         let ec_path = &cell.samples.ec[row];
@@ -617,40 +649,10 @@ impl Situation {
             let gap = separation.max(zero);
             let proximity = splat(c.kappa_s_lat) / (gap * gap + splat(c.epsilon)) * (one + (-separation).max(zero));
             let lateral = splat(c.kappa_v_lat) * lambda * dv * dv + proximity;
-            let efficiency = f64x4::new(std::array::from_fn(|i| terms.efficiency[lane(i)][k]));
+            let efficiency = f64x4::new(std::array::from_fn(|i| efficiency[lane(i)][k]));
             sum += splat(terms.safety_weight) * lateral + comfort + efficiency;
         }
         (sum / splat(ec_path.len().max(1) as f64)).to_array()
-    }
-
-    /// Per AC action, a lower bound on AC's cost in any lane-change row: its cost with the
-    /// lateral term at zero, summed as `ac_entry` sums (rounding is monotonic, so the
-    /// bound holds in floating point too). Its efficiency counts only when no lead-car
-    /// cap can make it depend on EC's position (`lead_range` 0).
-    fn ac_floors(&self, cell: &Cell, ac_actions: &[f64]) -> Vec<f64> {
-        let (samples, c) = (cell.samples, &cell.params.costs);
-        let Some(adj) = cell.option.and_then(|o| o.adjacent) else { return vec![0.0; ac_actions.len()] };
-        let n = samples.ec.first().map_or(0, Vec::len);
-        ac_actions
-            .iter()
-            .enumerate()
-            .map(|(col, &ac_accel)| {
-                let Some(ac_path) = samples.ac.get(col) else { return 0.0 };
-                let comfort = costs::comfort(c, 0, ac_accel, 0.0);
-                let mut sum = 0.0;
-                for (k, &ac) in ac_path.iter().enumerate().take(n) {
-                    let efficiency = if c.lead_range <= 0.0 {
-                        let limit = adj.player.bounds.max;
-                        costs::efficiency(ac.speed, costs::target_speed(c, ac, limit, samples.ac_lead.get(k).copied()))
-                    } else {
-                        0.0
-                    };
-                    let parts = CostComponents { safety: 0.0, comfort, efficiency };
-                    sum += parts.weighted_by(&adj.player.weights);
-                }
-                sum / n.max(1) as f64
-            })
-            .collect()
     }
 
     /// The lateral term of eq. (12) at sample `k` of a profile: zero while EC keeps its

@@ -397,11 +397,14 @@ impl World {
     /// scene only, so the bits do not depend on the threads); empty otherwise, and the
     /// caller decides them in turn.
     fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Vec<(usize, Decision)> {
+        if self.decision_threads < 2 {
+            return Vec::new();
+        }
         let gt: Vec<usize> = (0..self.vehicles.len())
             .filter(|&i| self.vehicles[i].status == Status::Driving && matches!(self.vehicles[i].driver, Driver::Gt(_)))
             .filter(|&i| pick(self, i))
             .collect();
-        if self.decision_threads < 2 || gt.len() < 2 {
+        if gt.len() < 2 {
             return Vec::new();
         }
         let chunk = gt.len().div_ceil(self.decision_threads);

@@ -1,5 +1,6 @@
 """Simulated seconds per wall second through the Python API on highway.toml (set up
-like highway-env's highway-v0): one ParallelEnv stepped through the PettingZoo API,
+like highway-env's highway-v0; --scenario for another): one ParallelEnv stepped through
+the PettingZoo API,
 batches of envs stepped in one round trip each (highway_arena.batch_env), and the
 Gymnasium vector env (highway_arena.vector_env). With --vs-envpool, EnvPool's C++
 Highway-v0 in the same run (pip install envpool): 1 env on 1 thread, and each batch
@@ -22,8 +23,8 @@ import time
 import highway_arena
 
 
-def single(connect: str, seconds: float) -> float:
-    env = highway_arena.parallel_env("highway", connect=connect)
+def single(connect: str, scenario: str, seconds: float) -> float:
+    env = highway_arena.parallel_env(scenario, connect=connect)
     env.reset(seed=0)
     steps, episodes = 0, 0
     started = time.perf_counter()
@@ -48,17 +49,17 @@ def rounds_per_second(step, seconds: float) -> float:
     return rounds / (time.perf_counter() - started)
 
 
-def batched(connect: str, num_envs: int, seconds: float) -> float:
-    envs = highway_arena.batch_env("highway", num_envs=num_envs, connect=connect)
+def batched(connect: str, scenario: str, num_envs: int, seconds: float) -> float:
+    envs = highway_arena.batch_env(scenario, num_envs=num_envs, connect=connect)
     envs.reset(seed=0)
-    actions = [{"ego_0": 1} for _ in range(num_envs)]
+    actions = [{agent: 1 for agent in envs.possible_agents} for _ in range(num_envs)]
     rate = rounds_per_second(lambda: envs.step(actions), seconds)
     envs.close()
     return rate * num_envs * envs.dt
 
 
-def vectorised(connect: str, num_envs: int, seconds: float) -> float:
-    envs = highway_arena.vector_env("highway", num_envs=num_envs, connect=connect)
+def vectorised(connect: str, scenario: str, num_envs: int, seconds: float) -> float:
+    envs = highway_arena.vector_env(scenario, num_envs=num_envs, connect=connect)
     envs.reset(seed=0)
     actions = [1] * num_envs
     rate = rounds_per_second(lambda: envs.step(actions), seconds)
@@ -85,6 +86,9 @@ def main() -> int:
     parser.add_argument("--binary", help="arena-server binary to launch (default: found as launch_server finds it)")
     parser.add_argument("--seconds", type=float, default=5.0, help="wall seconds per measurement (default 5)")
     parser.add_argument(
+        "--scenario", default="highway", help="scenario to step (default highway; EnvPool's figures are always Highway-v0)"
+    )
+    parser.add_argument(
         "--batch", "--batches", dest="batches", default="16,64,128", help="comma-separated batch sizes (default 16,64,128)"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -101,12 +105,12 @@ def main() -> int:
     def run(connect: str) -> dict:
         figures = {"single_sim_s_per_s": None, "batch": {}, "vector": {}}
         print("one env through the PettingZoo API ...", file=sys.stderr)
-        figures["single_sim_s_per_s"] = single(connect, args.seconds)
+        figures["single_sim_s_per_s"] = single(connect, args.scenario, args.seconds)
         for size in sizes:
             print(f"batch of {size} envs ...", file=sys.stderr)
-            figures["batch"][str(size)] = batched(connect, size, args.seconds)
+            figures["batch"][str(size)] = batched(connect, args.scenario, size, args.seconds)
             print(f"vector env of {size} envs ...", file=sys.stderr)
-            figures["vector"][str(size)] = vectorised(connect, size, args.seconds)
+            figures["vector"][str(size)] = vectorised(connect, args.scenario, size, args.seconds)
         if args.vs_envpool:
             figures["envpool"] = {"1 (1 thread)": envpool_rate(1, 1, args.seconds)}
             for size in sizes:
@@ -120,8 +124,9 @@ def main() -> int:
         with highway_arena.launch_server(binary=args.binary) as server:
             figures = run(server.endpoint)
     if args.json:
-        print(json.dumps(figures, indent=2))
+        print(json.dumps({"scenario": args.scenario, **figures}, indent=2))
     else:
+        print(f"scenario {args.scenario}:")
         print(f"one env:            {figures['single_sim_s_per_s']:9.1f} simulated s per wall s")
         for size, rate in figures["batch"].items():
             print(f"batch of {size:>3}:       {rate:9.1f} simulated s per wall s")

@@ -22,6 +22,8 @@ def test_no_server_at_the_address_raises_within_two_seconds_naming_it_with_advic
     with pytest.raises(highway_arena.ServerNotFoundError):
         highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1", connect_timeout=0.3)
     assert time.monotonic() - started < 1.0, "connect_timeout sets the wait"
+    with pytest.raises(ValueError, match="connect_timeout must be a positive number"):
+        highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1", connect_timeout=-1)
 
 
 def test_a_server_that_dies_gives_an_error_naming_it_at_once_and_close_stays_quiet():

@@ -86,7 +86,7 @@ impl Client {
     /// The first server found, waiting up to `wait` seconds (default: the timeout).
     #[pyo3(signature = (wait = None))]
     fn pick_server(&self, py: Python<'_>, wait: Option<f64>) -> PyResult<String> {
-        let wait = wait.filter(|w| w.is_finite() && *w >= 0.0).map(std::time::Duration::from_secs_f64);
+        let wait = wait.and_then(|w| std::time::Duration::try_from_secs_f64(w).ok());
         py.detach(|| match wait {
             Some(wait) => self.inner.pick_server_within(wait),
             None => self.inner.pick_server(),

@@ -89,9 +89,11 @@ class Connection:
 
     def __init__(self, connect=None, prefix=DEFAULT_PREFIX, timeout=DEFAULT_TIMEOUT, connect_timeout=DEFAULT_CONNECT_TIMEOUT):
         endpoints = _endpoints(connect)
-        timeout = float(timeout)
+        timeout, connect_timeout = float(timeout), float(connect_timeout)
         if not timeout > 0 or timeout == float("inf"):
             raise ValueError(f"timeout must be a positive number of seconds, not {timeout}")
+        if not connect_timeout > 0 or connect_timeout == float("inf"):
+            raise ValueError(f"connect_timeout must be a positive number of seconds, not {connect_timeout}")
         where = ", ".join(endpoints)
         try:
             self.client = _core.Client(endpoints, prefix=prefix, timeout=timeout / _ATTEMPTS, retries=_ATTEMPTS - 1)
@@ -103,7 +105,7 @@ class Connection:
                 f"write the endpoint as PROTOCOL/HOST:PORT, e.g. {DEFAULT_CONNECT}",
             ) from None
         try:
-            self.server = self.client.pick_server(wait=min(float(connect_timeout), timeout))
+            self.server = self.client.pick_server(wait=min(connect_timeout, timeout))
         except _core.ArenaError as error:
             self.client.close()
             code, message = error.args

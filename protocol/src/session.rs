@@ -14,6 +14,21 @@ pub const DEFAULT_TIMEOUT: f64 = 10.0;
 /// a loopback port where nothing listens fails within 2 s, session set-up included.
 pub const DEFAULT_CONNECT_TIMEOUT: f64 = 1.0;
 
+/// Whether `endpoint` has the form Zenoh needs, `<protocol>/<address>` (metadata and
+/// config suffixes allowed), so a typo gets one plain line rather than Zenoh's parser
+/// error.
+fn is_endpoint(endpoint: &str) -> bool {
+    match endpoint.split_once('/') {
+        Some((protocol, address)) => {
+            protocol.starts_with(|c: char| c.is_ascii_alphabetic())
+                && protocol.chars().all(|c| c.is_ascii_alphanumeric() || "_+-".contains(c))
+                && !address.is_empty()
+                && !address.contains(char::is_whitespace)
+        }
+        None => false,
+    }
+}
+
 /// Which side of the connection a process is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Role {
@@ -126,6 +141,9 @@ impl ConnectionFlags {
             None => zenoh::Config::default(),
         };
         let (mut listen, mut connect) = (self.listen.clone(), self.connect.clone());
+        if let Some(bad) = listen.iter().chain(&connect).find(|endpoint| !is_endpoint(endpoint)) {
+            return Err(format!("'{bad}' is not a Zenoh endpoint: write PROTOCOL/HOST:PORT, e.g. {DEFAULT_ENDPOINT}"));
+        }
         if listen.is_empty() && connect.is_empty() {
             match role {
                 Role::Server => listen.push(DEFAULT_ENDPOINT.to_string()),
@@ -151,5 +169,20 @@ impl ConnectionFlags {
         // peers other sessions know of (--scout turns discovery back on).
         set(&mut config, "scouting/gossip/enabled", self.scout.to_string())?;
         Ok(config)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_malformed_endpoint_is_one_plain_line_naming_it_and_the_form() {
+        for bad in ["nonsense", "tcp/", "/127.0.0.1:7447", "tcp/127.0.0.1: 7447"] {
+            let error = ConnectionFlags::connecting_to(bad).zenoh_config(Role::Client).unwrap_err();
+            assert!(error.contains(&format!("'{bad}' is not a Zenoh endpoint")), "{error}");
+            assert!(error.contains("e.g. tcp/127.0.0.1:7447") && !error.contains(".rs:"), "{error}");
+        }
+        assert!(ConnectionFlags::connecting_to("tcp/127.0.0.1:7447").zenoh_config(Role::Client).is_ok());
     }
 }

@@ -9,7 +9,6 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::Context;
 use arena_client::blocking::{Client, Env};
 use arena_client::{Action, CreateOptions, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
@@ -71,8 +70,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     if args.round_trips == 0 || !(args.batch_seconds.is_finite() && args.batch_seconds > 0.0) {
         anyhow::bail!("--round-trips must be at least 1 and --batch-seconds positive");
     }
-    let client = Client::connect(&args.connection).context("cannot connect")?;
-    let server = client.pick_server()?;
+    let (client, server) = crate::connect(&args.connection)?;
     progress(
         args.json,
         &format!("server {server}: timing {} step and raw round trips on merge.toml", args.round_trips),

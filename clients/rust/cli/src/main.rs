@@ -25,6 +25,26 @@ enum Command {
     Paper(arena_paper::report::PaperArgs),
 }
 
+/// A client on `flags` and the server it found: within the connect timeout, or an error
+/// that names the endpoints tried and what to do.
+fn connect(
+    flags: &arena_protocol::session::ConnectionFlags,
+) -> anyhow::Result<(arena_client::blocking::Client, String)> {
+    use anyhow::Context;
+    use arena_protocol::session::{DEFAULT_CONNECT_TIMEOUT, Role};
+    let where_ = flags.endpoints(Role::Client).join(", ");
+    let client = arena_client::blocking::Client::connect(flags)
+        .with_context(|| format!("cannot open a Zenoh session to {where_}"))?;
+    let server =
+        client.pick_server_within(std::time::Duration::from_secs_f64(DEFAULT_CONNECT_TIMEOUT)).with_context(|| {
+            format!(
+                "no arena-server answered at {where_} within {DEFAULT_CONNECT_TIMEOUT} s: start one there \
+                 (`arena-server --listen {where_}`), or point --connect at the endpoint yours listens on"
+            )
+        })?;
+    Ok((client, server))
+}
+
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
         Command::Bench(args) => bench::run(args),

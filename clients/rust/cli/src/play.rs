@@ -4,8 +4,6 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::Context;
-use arena_client::blocking::Client;
 use arena_client::{Action, CreateOptions, Frame, RenderMode, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
 use arena_protocol::{Game, Info, InfoValue, META_FASTER, META_IDLE, Space};
@@ -46,8 +44,7 @@ enum Policy {
 /// Runs `arena play`.
 pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.speed.is_finite() && args.speed >= 0.0, "--speed must be 0 or more, not {}", args.speed);
-    let client = Client::connect(&args.connection).context("cannot connect")?;
-    let server = client.pick_server()?;
+    let (client, server) = crate::connect(&args.connection)?;
     let expert = (args.policy == Policy::Expert).then_some(Game::Stackelberg);
     let options = CreateOptions { expert, ..CreateOptions::default() };
     let mut env = client.create_env(&server, ScenarioSource::Named(args.scenario.clone()), options)?;

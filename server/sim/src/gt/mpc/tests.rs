@@ -8,6 +8,31 @@ fn straight_field(road: &Road) -> Field {
     Field { params, width: 2.0, obstacles: vec![], lines: road_lines(road, &params) }
 }
 
+/// A problem on a straight road at 10 Hz, coasting, with the preview point free across the road.
+fn problem<'a>(
+    state: VehicleState,
+    previous_preview: f64,
+    target: f64,
+    models: (&'a VehicleParams, &'a DriverParams),
+    field: &'a Field,
+    nominal: &'a [f64],
+) -> MpcProblem<'a> {
+    let (vehicle, driver) = models;
+    MpcProblem {
+        state,
+        accel: 0.0,
+        previous_preview,
+        target,
+        curvature: 0.0,
+        vehicle,
+        driver,
+        dt: 0.1,
+        field,
+        nominal,
+        preview_bounds: (-10.0, 2.0),
+    }
+}
+
 /// Closed loop: the MPC plans every 0.1 s, the model integrates at 100 Hz.
 fn lane_change(style: Style, speed: f64, from: f64, to: f64, seconds: f64) -> (Vec<f64>, u32, f64) {
     let road = Road::straight(2000.0, 3, 4.0, 30.0);
@@ -19,20 +44,8 @@ fn lane_change(style: Style, speed: f64, from: f64, to: f64, seconds: f64) -> (V
     let (mut preview, mut plan, mut offsets, mut iterations) = (from, Vec::new(), Vec::new(), 0);
     let mut peak = 0.0f64;
     for _ in 0..(seconds * 10.0) as usize {
-        let problem = MpcProblem {
-            state,
-            accel: 0.0,
-            previous_preview: preview,
-            target: to,
-            curvature: 0.0,
-            vehicle: &vehicle,
-            driver: &driver,
-            dt: 0.1,
-            field: &field,
-            nominal: &plan,
-            preview_bounds: (-10.0, 2.0),
-        };
-        let solution = mpc.solve(&problem, &params).expect("the lane-change QP solves");
+        let now = problem(state, preview, to, (&vehicle, &driver), &field, &plan);
+        let solution = mpc.solve(&now, &params).expect("the lane-change QP solves");
         iterations = iterations.max(solution.iterations);
         (preview, plan) = (solution.preview, solution.plan);
         for _ in 0..10 {
@@ -73,26 +86,14 @@ fn the_field_pushes_the_plan_away_from_an_obstacle_beside_the_path() {
     let (vehicle, driver) = (VehicleParams::default(), DriverParams::default());
     let mut field = straight_field(&road);
     let state = VehicleState::cruising(0.0, -4.0, 20.0);
-    let problem = |field: &Field| {
-        let p = MpcProblem {
-            state,
-            accel: 0.0,
-            previous_preview: -4.0,
-            target: -4.0,
-            curvature: 0.0,
-            vehicle: &vehicle,
-            driver: &driver,
-            dt: 0.1,
-            field,
-            nominal: &[],
-            preview_bounds: (-10.0, 2.0),
-        };
+    let preview = |field: &Field| {
+        let p = problem(state, -4.0, -4.0, (&vehicle, &driver), field, &[]);
         Mpc::new().solve(&p, &MpcParams::default()).unwrap().preview
     };
-    let free = problem(&field);
+    let free = preview(&field);
     // A car creeping just to the left, level with us: we move right.
     field.obstacles.push(Obstacle { s: 5.0, d: -2.6, heading: 0.0, speed: 20.0 });
-    let pushed = problem(&field);
+    let pushed = preview(&field);
     assert!(pushed < free - 0.05, "free {free}, pushed {pushed}");
 }
 
@@ -102,18 +103,9 @@ fn a_reused_solver_returns_the_same_bits_as_a_fresh_one() {
     let field = straight_field(&road);
     let (vehicle, driver) = (VehicleParams::default(), DriverParams::default());
     let params = MpcParams::default();
-    let make = |d: f64, target: f64| MpcProblem {
-        state: VehicleState { heading: 0.01, ..VehicleState::cruising(10.0, d, 22.0) },
-        accel: 1.0,
-        previous_preview: d,
-        target,
-        curvature: 0.0,
-        vehicle: &vehicle,
-        driver: &driver,
-        dt: 0.1,
-        field: &field,
-        nominal: &[],
-        preview_bounds: (-10.0, 2.0),
+    let make = |d: f64, target: f64| {
+        let state = VehicleState { heading: 0.01, ..VehicleState::cruising(10.0, d, 22.0) };
+        MpcProblem { accel: 1.0, ..problem(state, d, target, (&vehicle, &driver), &field, &[]) }
     };
     let (x, y) = (make(-4.0, 0.0), make(-1.0, -8.0));
     let fresh = Mpc::new().solve(&x, &params).unwrap();
@@ -135,18 +127,7 @@ fn an_infeasible_qp_is_an_error_not_a_panic() {
     let road = Road::straight(2000.0, 3, 4.0, 30.0);
     let field = straight_field(&road);
     let (vehicle, driver) = (VehicleParams::default(), DriverParams::default());
-    let broken = MpcProblem {
-        state: VehicleState { yaw_rate: f64::NAN, ..VehicleState::cruising(0.0, 0.0, 20.0) },
-        accel: 0.0,
-        previous_preview: 0.0,
-        target: 0.0,
-        curvature: 0.0,
-        vehicle: &vehicle,
-        driver: &driver,
-        dt: 0.1,
-        field: &field,
-        nominal: &[],
-        preview_bounds: (-10.0, 2.0),
-    };
+    let state = VehicleState { yaw_rate: f64::NAN, ..VehicleState::cruising(0.0, 0.0, 20.0) };
+    let broken = problem(state, 0.0, 0.0, (&vehicle, &driver), &field, &[]);
     assert_eq!(Mpc::new().solve(&broken, &MpcParams::default()), Err(MpcError::NonFinite));
 }

@@ -50,12 +50,10 @@ async fn serve(args: Args) -> anyhow::Result<()> {
     println!("arena-server {} (server id {}) serving on {endpoints}", env!("CARGO_PKG_VERSION"), server.id());
     println!("scenarios: {}", scenarios.names().join(", "));
     println!("connect from another terminal:");
+    let endpoint = args.connection.endpoints(Role::Server).first().cloned().unwrap_or_default();
+    println!("  arena play --scenario merge --connect {endpoint}");
     println!(
-        "  arena play --scenario merge --connect {}",
-        args.connection.endpoints(Role::Server).first().cloned().unwrap_or_default()
-    );
-    println!(
-        "  python -c \"import highway_arena; env = highway_arena.parallel_env('merge'); print(env.reset(seed=0))\""
+        "  python -c \"import highway_arena; env = highway_arena.parallel_env('merge', connect='{endpoint}'); print(env.reset(seed=0))\""
     );
     println!("stop with Ctrl-C");
     shutdown_signal().await;

@@ -131,7 +131,16 @@ struct ScenarioFile {
     #[serde(default)]
     reward: RewardFile,
     #[serde(default)]
+    goal: GoalFile,
+    #[serde(default)]
     vary: toml::Table,
+}
+
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+struct GoalFile {
+    lanes: Vec<i64>,
+    ahead_of: Vec<String>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -371,6 +380,17 @@ impl RewardSpec {
     pub const DEFAULT_COST_SCALE: f64 = 25.0;
 }
 
+/// What a learner's episode must achieve to count as a success (`arena eval`, the
+/// `episode_success` info): end without a crash, off the road or past its lane's end, and
+/// then in one of `lanes` (if any are given) ahead of every vehicle of `ahead_of`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Goal {
+    /// Lanes the learner must end in; empty: any.
+    pub lanes: Vec<LaneId>,
+    /// Vehicles the learner must end ahead of (greater s).
+    pub ahead_of: Vec<String>,
+}
+
 /// One value a scenario draws afresh for each episode.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Variation {
@@ -401,6 +421,8 @@ pub struct Scenario {
     pub traffic: Option<TrafficSpec>,
     /// The reward's constants.
     pub reward: RewardSpec,
+    /// What counts as a learner's success.
+    pub goal: Goal,
     /// Values drawn afresh for each episode, by dotted key (`[vary]`).
     pub vary: Vec<(String, Variation)>,
     /// Where it came from, to draw episodes: the file name, its text, its overrides.
@@ -597,6 +619,7 @@ impl ScenarioFile {
         check_names_and_overlaps(&vehicles, &road)?;
         let traffic = self.traffic.map(|t| t.validate(&road)).transpose()?;
         let reward = self.reward.validate(sim.max_cycles)?;
+        let goal = self.goal.validate(&road, &vehicles)?;
         let vary = validate_vary(&self.vary)?;
         Ok(Scenario {
             name: self.name,
@@ -608,6 +631,7 @@ impl ScenarioFile {
             vehicles,
             traffic,
             reward,
+            goal,
             vary,
             source: Default::default(),
         })
@@ -624,6 +648,26 @@ impl RewardFile {
             return Err(invalid("reward.crash", format!("must be a negative number, not {crash}")));
         }
         Ok(RewardSpec { cost_scale: self.cost_scale, crash: self.crash })
+    }
+}
+
+impl GoalFile {
+    fn validate(&self, road: &Road, vehicles: &[VehicleSpec]) -> Result<Goal, ScenarioErrorKind> {
+        let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
+        let mut lanes = Vec::with_capacity(self.lanes.len());
+        for &lane in &self.lanes {
+            if !road.has_lane(lane) {
+                return Err(invalid(
+                    "goal.lanes",
+                    format!("lists lane {lane}, but the road's lanes are 0..={}", road.lane_count() - 1),
+                ));
+            }
+            lanes.push(LaneId(lane as u32));
+        }
+        if let Some(name) = self.ahead_of.iter().find(|name| !vehicles.iter().any(|v| &v.name == *name)) {
+            return Err(invalid("goal.ahead_of", format!("names '{name}', which is no [[vehicle]] of the file")));
+        }
+        Ok(Goal { lanes, ahead_of: self.ahead_of.clone() })
     }
 }
 

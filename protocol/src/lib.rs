@@ -45,4 +45,4 @@ pub use messages::*;
 pub use spaces::{DType, Space};
 
 /// The protocol version every message carries first; bumped on any incompatible change.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;

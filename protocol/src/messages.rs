@@ -157,6 +157,94 @@ pub struct CreateOptions {
     /// Add to every agent's info what the built-in game-theoretic AV would do in its
     /// place, deciding with this game (`expert_action`, `expert_accel`, `expert_sigma`).
     pub expert: Option<Game>,
+    /// Drive every learner in the server with this built-in policy (`arena eval`): the
+    /// agents stay agents (observations, rewards, infos), and steps carry no actions.
+    pub policy: Option<BuiltinPolicy>,
+}
+
+/// A driver the server has, in a learner's place.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BuiltinPolicy {
+    /// The game-theoretic AV of the paper as a leader; `style` none keeps the learner's.
+    Gt {
+        /// Driving style (Tables I and III), or the learner's own.
+        style: Option<Style>,
+        /// The game it plays.
+        game: Game,
+    },
+    /// IDM for speed and MOBIL for lane changes, in the learner's style.
+    Idm,
+}
+
+impl BuiltinPolicy {
+    /// The names `FromStr` takes, for help texts and error messages.
+    pub const NAMES: &'static str = "gt:<aggressive|normal|conservative>:<nash|stackelberg>, expert (gt in the learner's own style, stackelberg), idm";
+}
+
+impl fmt::Display for BuiltinPolicy {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BuiltinPolicy::Gt { style: None, game: Game::Stackelberg } => f.write_str("expert"),
+            BuiltinPolicy::Gt { style, game } => {
+                let style = style.map_or("own", Style::name);
+                write!(f, "gt:{style}:{}", game.name())
+            }
+            BuiltinPolicy::Idm => f.write_str("idm"),
+        }
+    }
+}
+
+impl FromStr for BuiltinPolicy {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, String> {
+        let unknown = || format!("unknown built-in policy '{text}': the built-in policies are {}", Self::NAMES);
+        match text.split(':').collect::<Vec<_>>().as_slice() {
+            ["expert"] => Ok(BuiltinPolicy::Gt { style: None, game: Game::Stackelberg }),
+            ["idm"] => Ok(BuiltinPolicy::Idm),
+            ["gt", style, game] => {
+                let style = Style::ALL.into_iter().find(|s| s.name() == *style).ok_or_else(unknown)?;
+                let game =
+                    [Game::Nash, Game::Stackelberg].into_iter().find(|g| g.name() == *game).ok_or_else(unknown)?;
+                Ok(BuiltinPolicy::Gt { style: Some(style), game })
+            }
+            _ => Err(unknown()),
+        }
+    }
+}
+
+impl Game {
+    /// `nash` or `stackelberg`, as scenario files spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Game::Nash => "nash",
+            Game::Stackelberg => "stackelberg",
+        }
+    }
+}
+
+impl Style {
+    /// The three, from the most to the least aggressive.
+    pub const ALL: [Style; 3] = [Style::Aggressive, Style::Normal, Style::Conservative];
+
+    /// As scenario files spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Style::Aggressive => "aggressive",
+            Style::Normal => "normal",
+            Style::Conservative => "conservative",
+        }
+    }
+}
+
+/// The paper's driving styles (Tables I and III).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Style {
+    /// Large safety margin traded for speed.
+    Aggressive,
+    /// Between the two.
+    Normal,
+    /// Keeps its distance.
+    Conservative,
 }
 
 /// The game the built-in AV plays when asked for `expert` infos.
@@ -528,6 +616,7 @@ mod tests {
                     max_cycles: Some(9),
                     render_size: Some((10, 20)),
                     expert: Some(Game::Stackelberg),
+                    policy: Some(BuiltinPolicy::Gt { style: Some(Style::Conservative), game: Game::Nash }),
                 },
             },
             RequestBody::CreateEnv {
@@ -593,6 +682,27 @@ mod tests {
             ReplyBody::Closed,
             ReplyBody::Error(error),
         ]
+    }
+
+    #[test]
+    fn built_in_policies_are_named_as_the_cli_and_python_spell_them() {
+        let expected = [
+            ("expert", BuiltinPolicy::Gt { style: None, game: Game::Stackelberg }),
+            ("idm", BuiltinPolicy::Idm),
+            ("gt:aggressive:nash", BuiltinPolicy::Gt { style: Some(Style::Aggressive), game: Game::Nash }),
+            (
+                "gt:conservative:stackelberg",
+                BuiltinPolicy::Gt { style: Some(Style::Conservative), game: Game::Stackelberg },
+            ),
+        ];
+        for (name, policy) in expected {
+            assert_eq!(name.parse::<BuiltinPolicy>(), Ok(policy));
+            assert_eq!(policy.to_string(), name);
+        }
+        for bad in ["gt:normal", "gt:calm:nash", "gt:normal:pareto", "idle", "", "idm:normal"] {
+            let error = bad.parse::<BuiltinPolicy>().unwrap_err();
+            assert!(error.contains(&format!("'{bad}'")) && error.contains("gt:<aggressive"), "{error}");
+        }
     }
 
     #[test]

@@ -7,16 +7,16 @@
 use std::sync::Mutex;
 
 use arena_client::blocking::{Client as BlockingClient, Env as BlockingEnv};
-use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSource};
+use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSource, eval};
 use arena_protocol::keys::DEFAULT_PREFIX;
 use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
-    Action, ActionType, Frame, Game, Info, InfoValue, Observation, ObservationKind, RenderMode, Space, StepReply,
-    Tensor, TensorData,
+    Action, ActionType, BuiltinPolicy, Frame, Game, Info, InfoValue, Observation, ObservationKind, RenderMode, Space,
+    StepReply, Tensor, TensorData,
 };
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList, PyTuple};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 
 pyo3::create_exception!(
     _core,
@@ -96,7 +96,7 @@ impl Client {
 
     /// Creates an env: `scenario` names one on the server, or `text` is a scenario
     /// file's TOML (then `scenario` names it in error messages).
-    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None))]
+    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None, policy = None))]
     #[allow(clippy::too_many_arguments)]
     fn create_env(
         &self,
@@ -110,6 +110,7 @@ impl Client {
         max_cycles: Option<u32>,
         render_size: Option<(u32, u32)>,
         expert: Option<String>,
+        policy: Option<String>,
     ) -> PyResult<Env> {
         let overrides = overrides
             .into_iter()
@@ -142,11 +143,12 @@ impl Client {
                 return Err(PyValueError::new_err(format!("expert must be 'nash' or 'stackelberg', not {other:?}")));
             }
         };
+        let policy = policy.map(|name| name.parse::<BuiltinPolicy>()).transpose().map_err(PyValueError::new_err)?;
         let source = match text {
             Some(text) => ScenarioSource::Inline { file_name: scenario, text },
             None => ScenarioSource::Named(scenario),
         };
-        let options = CreateOptions { overrides, action_type, observation, max_cycles, render_size, expert };
+        let options = CreateOptions { overrides, action_type, observation, max_cycles, render_size, expert, policy };
         let env = py.detach(|| self.inner.create_env(&server, source, options)).map_err(to_py_err)?;
         Ok(Env { specs: env.specs().clone(), inner: Mutex::new(Some(env)) })
     }
@@ -290,6 +292,51 @@ fn info_dict<'py>(py: Python<'py>, info: &Info) -> PyResult<Bound<'py, PyDict>> 
         }
     }
     Ok(dict)
+}
+
+/// The inverse of `info_dict` for the values a last info carries (lists are left out).
+fn info_from_dict(dict: &Bound<'_, PyDict>) -> PyResult<Info> {
+    let mut values = Vec::with_capacity(dict.len());
+    for (key, value) in dict.iter() {
+        let key: String = key.extract()?;
+        // bool before int: Python's bool is an int.
+        let value = if value.is_instance_of::<PyBool>() {
+            InfoValue::Bool(value.extract()?)
+        } else if value.is_instance_of::<PyInt>() {
+            InfoValue::I64(value.extract()?)
+        } else if value.is_instance_of::<PyFloat>() {
+            InfoValue::F64(value.extract()?)
+        } else if value.is_instance_of::<PyString>() {
+            InfoValue::Str(value.extract()?)
+        } else {
+            continue;
+        };
+        values.push((key, value));
+    }
+    Ok(Info { values })
+}
+
+/// The tables of evaluated episodes, as `arena eval` writes them (`arena_client::eval`):
+/// `rows` are (policy, scenario, seed, agent, the agent's last info); returns (Markdown
+/// table, summary CSV, episodes CSV, JSON).
+#[pyfunction]
+fn eval_report(
+    rows: Vec<(String, String, u64, String, Bound<'_, PyDict>)>,
+) -> PyResult<(String, String, String, String)> {
+    let mut episodes = Vec::with_capacity(rows.len());
+    for (policy, scenario, seed, agent, info) in rows {
+        let info = info_from_dict(&info)?;
+        let episode =
+            eval::Episode::from_info(&policy, &scenario, seed, &agent, &info).map_err(PyValueError::new_err)?;
+        episodes.push(episode);
+    }
+    let summaries = eval::summarise(&episodes);
+    Ok((
+        eval::markdown(&summaries),
+        eval::csv(&summaries),
+        eval::episodes_csv(&episodes),
+        eval::json(&summaries, &episodes),
+    ))
 }
 
 fn space_dict<'py>(py: Python<'py>, space: &Space) -> PyResult<Bound<'py, PyDict>> {
@@ -465,6 +512,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_CONNECT_TIMEOUT", DEFAULT_CONNECT_TIMEOUT)?;
     m.add_class::<Client>()?;
     m.add_class::<Env>()?;
+    m.add_function(wrap_pyfunction!(eval_report, m)?)?;
     m.add("ArenaError", m.py().get_type::<ArenaError>())?;
     Ok(())
 }

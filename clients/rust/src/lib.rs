@@ -23,6 +23,7 @@
 #![warn(missing_docs)]
 
 pub mod blocking;
+pub mod eval;
 
 use std::fmt;
 use std::sync::Arc;

@@ -155,7 +155,7 @@ pub struct Sample {
     pub lane_change: LaneChange,
     /// EC's lateral offset (m).
     pub d: f64,
-    /// EC's stage cost right after deciding.
+    /// EC's stage cost at the end of the control period that starts at `t`.
     pub cost: CostComponents,
 }
 
@@ -228,10 +228,12 @@ pub fn run_world(
             Driver::Gt(gt) => gt.decision.lane_change,
             _ => LaneChange::Keep,
         };
-        let cost = stage_cost(world.scene(), ec, &params);
         for _ in 1..substeps {
             world.tick();
         }
+        // At the period's end, as the env samples its rewards: one definition of the RMS
+        // for `arena paper` and `arena eval`.
+        let cost = stage_cost(world.scene(), ec, &params);
         samples.push(Sample { t, speeds, gaps, lane_change, d, cost });
     }
     let collision = !world.collisions().is_empty() || matches!(world.vehicle(ec).status, Status::OffRoad);
@@ -286,13 +288,7 @@ pub fn decision_time(trace: &Trace, lane_width: f64) -> Option<usize> {
 
 fn rms(trace: &Trace) -> CostComponents {
     let n = trace.samples.len().max(1) as f64;
-    let squares = trace.samples.iter().fold(CostComponents::default(), |acc, s| {
-        acc + CostComponents {
-            safety: s.cost.safety * s.cost.safety,
-            comfort: s.cost.comfort * s.cost.comfort,
-            efficiency: s.cost.efficiency * s.cost.efficiency,
-        }
-    });
+    let squares = trace.samples.iter().fold(CostComponents::default(), |acc, s| acc + s.cost.squared());
     CostComponents {
         safety: (squares.safety / n).sqrt(),
         comfort: (squares.comfort / n).sqrt(),

@@ -6,18 +6,20 @@
 //! return. Nothing here reads a clock: the same seed and actions give the same bits.
 
 mod action;
+mod episode;
 mod observation;
 mod render;
 mod reward;
 
 use arena_protocol::InfoValue;
 use arena_protocol::{
-    Action, ActionType, CreateOptions, EnvSpecs, ErrorCode, ErrorReply, Frame, Info, Observation, ObservationKind,
-    OptionValue, RenderMode,
+    Action, ActionType, BuiltinPolicy, CreateOptions, EnvSpecs, ErrorCode, ErrorReply, Frame, Info, Observation,
+    ObservationKind, OptionValue, RenderMode,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use arena_sim::dynamics::Style;
 use arena_sim::gt::{Game, GtDriver, expert_decision, plan};
 use arena_sim::scenario::{ActionKind, DriverSpec, Scenario};
 use arena_sim::scene::Role;
@@ -56,6 +58,8 @@ struct AgentSlot {
     /// The memory of the built-in AV planning in this agent's place (its last preview
     /// point and MPC plan), for continuous expert actions.
     expert: Option<Box<GtDriver>>,
+    /// The figures of its episode so far.
+    stats: Option<episode::EpisodeStats>,
 }
 
 /// A PettingZoo-Parallel env over one scenario.
@@ -69,6 +73,8 @@ pub struct Env {
     max_cycles: u32,
     render_size: (u32, u32),
     expert: Option<Game>,
+    /// The built-in driver of every learner, when the server drives them.
+    policy: Option<BuiltinPolicy>,
     seeds: ChaCha8Rng,
     world: Option<World>,
     agents: Vec<AgentSlot>,
@@ -131,6 +137,7 @@ impl Env {
                 }),
                 live: false,
                 expert: None,
+                stats: None,
             })
             .collect();
         Ok(Env {
@@ -139,10 +146,8 @@ impl Env {
             observation: options.observation.unwrap_or(ObservationKind::Kinematics),
             max_cycles,
             render_size,
-            expert: options.expert.map(|game| match game {
-                arena_protocol::Game::Nash => Game::Nash,
-                arena_protocol::Game::Stackelberg => Game::Stackelberg,
-            }),
+            expert: options.expert.map(game),
+            policy: options.policy,
             seeds: ChaCha8Rng::seed_from_u64(entropy),
             world: None,
             agents,
@@ -200,6 +205,10 @@ impl Env {
                 ),
             ));
         }
+        let mut episode = episode;
+        if let Some(policy) = self.policy {
+            drive_learners(&mut episode, policy);
+        }
         let mut world = episode.build(world_seed);
         self.seeds = seeds;
         self.episode = episode;
@@ -209,6 +218,7 @@ impl Env {
             agent.vehicle = world.find(&agent.name).unwrap_or(agent.vehicle);
             agent.expert =
                 self.expert.map(|game| Box::new(GtDriver::new(game, Role::Leader, world.gt_params(agent.vehicle))));
+            agent.stats = Some(episode::EpisodeStats::start(&world, agent.vehicle));
         }
         let outcome = self
             .agents
@@ -233,6 +243,15 @@ impl Env {
         if !self.agents.iter().any(|a| a.live) {
             return Err(error(ErrorCode::AgentNotLive, "every agent has finished this episode: call reset"));
         }
+        if let (Some(policy), Some((name, _))) = (self.policy, actions.first()) {
+            return Err(error(
+                ErrorCode::InvalidAction,
+                format!(
+                    "agent '{name}' is driven by the server's built-in policy {policy:?} (the env's `policy` \
+                     option): send steps without actions"
+                ),
+            ));
+        }
         let mut chosen: Vec<Option<Action>> = vec![None; self.agents.len()];
         for (name, action) in actions {
             let Some(index) = self.agents.iter().position(|a| &a.name == name) else {
@@ -254,7 +273,7 @@ impl Env {
         }
         let mut applied = vec![true; self.agents.len()];
         for ((agent, action), applied) in self.agents.iter().zip(&chosen).zip(&mut applied) {
-            if agent.live {
+            if agent.live && self.policy.is_none() {
                 *applied = action::apply(world, agent.vehicle, action.as_ref(), agent.action);
             }
         }
@@ -262,6 +281,7 @@ impl Env {
         let driving_before: Vec<bool> =
             live_before.iter().map(|&i| world.vehicle(self.agents[i].vehicle).status == Status::Driving).collect();
         let vehicles: Vec<VehicleId> = live_before.iter().map(|&i| self.agents[i].vehicle).collect();
+        let started = world.time();
         let costs = reward::advance(world, &vehicles, self.episode.step_dt);
         self.cycles += 1;
         let truncated = self.cycles >= self.max_cycles;
@@ -274,9 +294,12 @@ impl Env {
             let reward = reward::reward(&self.episode.reward, self.max_cycles, costs[k].weighted, crashed_now);
             let mut info = reward::info(world, agent.vehicle, Some(&costs[k]));
             info.values.push(("action_applied".to_string(), InfoValue::Bool(applied[i])));
+            let stats = agent.stats.get_or_insert_with(|| episode::EpisodeStats::start(world, agent.vehicle));
+            stats.record(world, agent.vehicle, started, reward, &costs[k]);
             if terminated || truncated {
                 let reason = if terminated { reward::end_reason(world, agent.vehicle) } else { "time_limit" };
                 info.values.push(("end_reason".to_string(), InfoValue::Str(reason.to_string())));
+                info.values.extend(stats.finish(world, agent.vehicle, &self.episode.goal, reason));
             } else {
                 add_expert(&mut info, world, agent);
             }
@@ -311,6 +334,33 @@ impl Env {
             RenderMode::RgbArray => render::rgb(world, focus, self.render_size),
             RenderMode::Ansi => Frame::Ansi(render::ansi(world, focus)),
         })
+    }
+}
+
+fn game(game: arena_protocol::Game) -> Game {
+    match game {
+        arena_protocol::Game::Nash => Game::Nash,
+        arena_protocol::Game::Stackelberg => Game::Stackelberg,
+    }
+}
+
+/// Hands every learner's vehicle of `episode` to `policy`: the same world as a scenario
+/// file with that driver, so a `gt` policy drives exactly as `arena paper`'s EC does.
+fn drive_learners(episode: &mut Scenario, policy: BuiltinPolicy) {
+    for vehicle in episode.vehicles.iter_mut().filter(|v| matches!(v.driver, DriverSpec::Agent(_))) {
+        vehicle.driver = match policy {
+            BuiltinPolicy::Gt { style, game: g } => {
+                if let Some(style) = style {
+                    vehicle.style = match style {
+                        arena_protocol::Style::Aggressive => Style::Aggressive,
+                        arena_protocol::Style::Normal => Style::Normal,
+                        arena_protocol::Style::Conservative => Style::Conservative,
+                    };
+                }
+                DriverSpec::Gt { game: game(g), role: Role::Leader, follower_tolerance: 0.0 }
+            }
+            BuiltinPolicy::Idm => DriverSpec::Idm,
+        };
     }
 }
 

@@ -42,13 +42,18 @@ pub fn end_reason(world: &World, id: VehicleId) -> &'static str {
     }
 }
 
-/// The mean cost components of one agent over one env step.
+/// The cost of one agent over one env step, sampled at the end of each control period
+/// it was driving.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepCost {
     /// Mean of the three components.
     pub components: CostComponents,
     /// Mean of J = w . components with the agent's style weights.
     pub weighted: f64,
+    /// Sum of the squares of each component's samples, for the episode's RMS.
+    pub squares: CostComponents,
+    /// How many samples.
+    pub samples: u32,
 }
 
 /// Advances the world by `step_dt` and returns each vehicle's mean cost over it,
@@ -66,9 +71,9 @@ pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<S
                 if world.vehicle(id).status == Status::Driving {
                     let params = world.gt_params(id);
                     let cost = stage_cost(world.scene(), id, &params);
-                    sum.components.safety += cost.safety;
-                    sum.components.comfort += cost.comfort;
-                    sum.components.efficiency += cost.efficiency;
+                    sum.components = sum.components + cost;
+                    sum.squares = sum.squares + cost.squared();
+                    sum.samples += 1;
                     sum.weighted += cost.weighted(world.vehicle(id).style);
                 }
             }
@@ -83,6 +88,7 @@ pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<S
                 efficiency: sum.components.efficiency / n,
             },
             weighted: sum.weighted / n,
+            ..*sum
         })
         .collect()
 }

@@ -368,3 +368,59 @@ fn a_render_size_whose_frames_could_not_travel_is_refused_at_creation() {
             < arena_protocol::MAX_MESSAGE_BYTES
     );
 }
+
+/// Runs one episode of `env` (seed 0) with no actions; returns the last step's info.
+fn last_info(env: &mut Env) -> Info {
+    env.reset(Some(0), &[]).unwrap();
+    loop {
+        let steps = env.step(&[]).unwrap();
+        let agent = &steps[0];
+        let ends = agent.terminated || agent.truncated;
+        assert!(ends || !agent.info.values.iter().any(|(k, _)| k.starts_with("episode_")), "only on the last step");
+        if ends {
+            return agent.info.clone();
+        }
+    }
+}
+
+fn figure(info: &Info, key: &str) -> InfoValue {
+    info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone()).unwrap_or_else(|| panic!("{key}: {info:?}"))
+}
+
+#[test]
+fn a_built_in_policy_drives_the_learner_in_the_server_and_its_episode_is_summed_up() {
+    let gt = arena_protocol::BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Stackelberg };
+    let mut driven = env("merge", CreateOptions { policy: Some(gt), ..CreateOptions::default() });
+    let info = last_info(&mut driven);
+    // The game-theoretic EC merges into lane 0 (the paper's Scenario A): a success, with
+    // its lane change begun within the first seconds, as `arena paper` finds.
+    assert_eq!(figure(&info, "end_reason"), InfoValue::Str("time_limit".into()));
+    assert_eq!(figure(&info, "episode_success"), InfoValue::Bool(true));
+    assert_eq!(figure(&info, "episode_length"), InfoValue::I64(200));
+    let InfoValue::F64(t_c) = figure(&info, "episode_t_c") else { panic!() };
+    assert!((0.5..8.0).contains(&t_c), "t_c {t_c}");
+    let InfoValue::F64(gap) = figure(&info, "episode_min_gap") else { panic!() };
+    assert!(gap > 0.0 && gap.is_finite(), "min gap {gap}");
+    // Sending actions to a learner the server drives is refused, naming the option.
+    driven.reset(Some(0), &[]).unwrap();
+    let refused = driven.step(&meta("ec_0", 1)).unwrap_err();
+    assert!(refused.code == ErrorCode::InvalidAction && refused.message.contains("policy"), "{refused}");
+
+    // Idle in the ending lane: it drives past the lane's end, never merges, and fails.
+    let mut idle = env("merge", CreateOptions::default());
+    let info = last_info(&mut idle);
+    assert_eq!(figure(&info, "end_reason"), InfoValue::Str("lane_end".into()));
+    assert_eq!(figure(&info, "episode_success"), InfoValue::Bool(false));
+    assert!(!info.values.iter().any(|(k, _)| k == "episode_t_c"), "no lane change, no t_c");
+    assert!(matches!(figure(&info, "episode_length"), InfoValue::I64(n) if n < 200));
+}
+
+#[test]
+fn an_idm_policy_keeps_the_learner_in_traffic_without_a_crash() {
+    let options = CreateOptions { policy: Some(arena_protocol::BuiltinPolicy::Idm), ..CreateOptions::default() };
+    let mut env = env("highway", options);
+    let info = last_info(&mut env);
+    assert_eq!(figure(&info, "episode_success"), InfoValue::Bool(true), "{info:?}");
+    let InfoValue::F64(ttc) = figure(&info, "episode_min_ttc") else { panic!() };
+    assert!(ttc > 0.0, "{ttc}");
+}

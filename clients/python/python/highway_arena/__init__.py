@@ -27,6 +27,7 @@ from ._errors import (
 )
 from ._server import LocalServer, find_server_binary, launch_server
 from .batch import BatchEnv
+from .evaluation import Evaluation, evaluate
 from .parallel import ParallelEnv, default_connect
 from .single import GymEnv
 from .vector import VectorEnv
@@ -36,6 +37,7 @@ __all__ = [
     "ArenaTimeoutError",
     "BatchEnv",
     "EnvClosedError",
+    "Evaluation",
     "GymEnv",
     "InvalidActionError",
     "InvalidEndpointError",
@@ -48,6 +50,7 @@ __all__ = [
     "batch_env",
     "default_connect",
     "env",
+    "evaluate",
     "find_server_binary",
     "gym_env",
     "launch_server",

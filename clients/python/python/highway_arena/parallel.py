@@ -133,7 +133,9 @@ class ParallelEnv(_ParallelEnv):
     the server knows, or the name of ``scenario_text``), ``connect`` (endpoint),
     ``render_mode`` ('rgb_array' or 'ansi'), ``max_cycles``, ``action_type`` ('meta' or
     'continuous'), ``observation`` ('kinematics' or 'kinematics_with_mask'), ``expert``
-    ('nash' or 'stackelberg': infos say what the built-in AV would do), ``seed`` (used by
+    ('nash' or 'stackelberg': infos say what the built-in AV would do), ``policy`` (a
+    built-in driver the server drives every learner with, as ``arena eval`` does:
+    'gt:<style>:<game>', 'expert' or 'idm'; then ``step({})`` takes no actions), ``seed`` (used by
     the first ``reset()`` that is given none, for reproducible runs), ``timeout`` (the
     seconds any one call may wait for the server, retries included; default 10),
     ``connect_timeout`` (the seconds to wait for a server to appear; default 1), and scenario
@@ -151,6 +153,7 @@ class ParallelEnv(_ParallelEnv):
         action_type=None,
         observation=None,
         expert=None,
+        policy=None,
         scenario_text=None,
         overrides=None,
         prefix=DEFAULT_PREFIX,
@@ -177,6 +180,7 @@ class ParallelEnv(_ParallelEnv):
                 max_cycles=max_cycles,
                 render_size=render_size,
                 expert=expert,
+                policy=policy,
             )
             specs = self._env.specs()
         except BaseException:

@@ -3,9 +3,10 @@
 use clap::{Parser, Subcommand};
 
 mod bench;
+mod eval;
 mod play;
 
-/// Command-line client of highway-arena. `bench` and `play` talk to a running
+/// Command-line client of highway-arena. `bench`, `eval` and `play` talk to a running
 /// `arena-server` (start one with `arena-server`); `paper` runs in process.
 #[derive(Debug, Parser)]
 #[command(name = "arena", version, about)]
@@ -19,6 +20,10 @@ enum Command {
     /// Measure what the protocol and server add to a Zenoh round trip, and batched
     /// throughput on highway.toml.
     Bench(bench::BenchArgs),
+    /// Compare policies (built-in drivers, idle, random) on scenarios over the same seeds:
+    /// success, collision and off-road rates, t_c, speed, gaps, the paper's cost RMS and
+    /// return, with 95 % intervals; a table, Markdown, CSV, JSON and PNG plots.
+    Eval(eval::EvalArgs),
     /// Step an env with a built-in policy and watch it as text in the terminal.
     Play(play::PlayArgs),
     /// Reproduce the paper's Scenario A and B tables and plots, in process.
@@ -48,6 +53,7 @@ fn connect(
 fn main() -> anyhow::Result<()> {
     match Cli::parse().command {
         Command::Bench(args) => bench::run(args),
+        Command::Eval(args) => eval::run(args),
         Command::Play(args) => play::run(args),
         Command::Paper(args) => arena_paper::report::run(args),
     }

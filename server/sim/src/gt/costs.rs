@@ -77,6 +77,15 @@ impl CostComponents {
         // eq. (9)
         w.safety * self.safety + w.comfort * self.comfort + w.efficiency * self.efficiency
     }
+
+    /// Each component squared: the terms of an RMS over a run (Tables V and VII).
+    pub fn squared(self) -> CostComponents {
+        CostComponents {
+            safety: self.safety * self.safety,
+            comfort: self.comfort * self.comfort,
+            efficiency: self.efficiency * self.efficiency,
+        }
+    }
 }
 
 impl Add for CostComponents {

@@ -1,0 +1,212 @@
+"""``highway_arena.evaluate``: the Python twin of ``arena eval`` (docs/evaluation.md).
+Policies are compared on scenarios over the same seeds; built-in drivers run in the
+server, callables (a trained Stable-Baselines3 model, a behaviour-cloning policy) in this
+process; the figures and their 95 % intervals come from the same Rust code as the CLI's.
+
+    import highway_arena
+    result = highway_arena.evaluate(
+        {"expert": "expert", "idle": "idle", "mine": lambda obs: 1}, ["merge"], episodes=20
+    )
+    print(result.markdown)
+    result.write("out/eval")           # results.md/.csv/.json, episodes.csv, PNG plots
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _core
+from .parallel import ParallelEnv
+
+CLIENT_POLICIES = ("idle", "random")
+
+
+@dataclass
+class Evaluation:
+    """What ``evaluate`` found: the table as Markdown, one summary per (scenario,
+    policy) with each figure's mean, 95 % interval and count, and every episode."""
+
+    markdown: str
+    summaries: list
+    episodes: list
+    figures: list
+    _files: dict = field(repr=False, default_factory=dict)
+
+    def summary(self, scenario, policy) -> dict:
+        """{figure: {"mean", "low", "high", "n"}} of one policy on one scenario."""
+        for s in self.summaries:
+            if s["scenario"] == scenario and s["policy"] == policy:
+                return {key: estimate for key, estimate in s["figures"]}
+        raise KeyError(f"no summary of policy {policy!r} on scenario {scenario!r}")
+
+    def write(self, out) -> list:
+        """Writes results.md, results.csv, episodes.csv, results.json and, with
+        matplotlib installed, costs_<scenario>.png and rates_<scenario>.png into ``out``;
+        returns the paths written."""
+        os.makedirs(out, exist_ok=True)
+        written = []
+        for name, text in self._files.items():
+            path = os.path.join(out, name)
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(text)
+            written.append(path)
+        try:
+            from ._plots import plot_costs, plot_rates
+        except ImportError:
+            print("highway_arena.evaluate: matplotlib is not installed, so no PNG plots were drawn", file=sys.stderr)
+            return written
+        for scenario in dict.fromkeys(e["scenario"] for e in self.episodes):
+            written.append(plot_costs(self, scenario, os.path.join(out, f"costs_{scenario}.png")))
+            written.append(plot_rates(self, scenario, os.path.join(out, f"rates_{scenario}.png")))
+        return written
+
+
+def _named(policies) -> list:
+    """[(name, policy)] from a dict, or from a list of names and callables."""
+    if isinstance(policies, dict):
+        return [(str(name), policy) for name, policy in policies.items()]
+    if isinstance(policies, (str, bytes)) or callable(policies):
+        policies = [policies]
+    named = []
+    for policy in policies:
+        name = policy if isinstance(policy, str) else getattr(policy, "__name__", type(policy).__name__)
+        named.append((name, policy))
+    names = [n for n, _ in named]
+    twice = {n for n in names if names.count(n) > 1}
+    if twice:
+        raise ValueError(f"policies {sorted(twice)} appear twice: pass a dict {{name: policy}} to name them apart")
+    return named
+
+
+def _act(policy, observation):
+    """The action of an external policy: an SB3-style model (``predict``) or a callable."""
+    if hasattr(policy, "predict"):
+        action, _ = policy.predict(observation, deterministic=True)
+        return action
+    return policy(observation)
+
+
+def _progress(total, quiet):
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        tqdm = None
+    if quiet:
+        return None
+    if tqdm is not None:
+        return tqdm(total=total, unit="episode", file=sys.stderr)
+    return _Line(total)
+
+
+class _Line:
+    """A one-line progress report on stderr when tqdm is not installed."""
+
+    def __init__(self, total):
+        self.total, self.n = total, 0
+
+    def set_description(self, text):
+        self.text = text
+
+    def update(self, k):
+        self.n += k
+        print(f"\r{self.text}: {self.n}/{self.total} episodes", end="", file=sys.stderr, flush=True)
+
+    def close(self):
+        print(file=sys.stderr)
+
+
+def evaluate(
+    policies,
+    scenarios,
+    episodes=20,
+    seed=0,
+    max_cycles=None,
+    connect=None,
+    out=None,
+    quiet=False,
+    **env_kwargs,
+) -> Evaluation:
+    """Runs each policy for ``episodes`` episodes of each scenario; episode i is reset with
+    seed ``seed + i`` for every policy. A policy is a built-in name ('gt:<style>:<game>',
+    'expert', 'idm': driven in the server; 'idle', 'random': here), a callable
+    observation -> action, or a model with ``predict`` (Stable-Baselines3); ``policies``
+    is a list of those or a dict {name: policy}. Every learner of a scenario follows the
+    policy. ``out`` writes the tables and plots there (``Evaluation.write``); other
+    keyword arguments go to each env (``action_type``, ``overrides``, ...)."""
+    named = _named(policies)
+    scenarios = [scenarios] if isinstance(scenarios, str) else list(scenarios)
+    episodes = int(episodes)
+    if episodes < 1:
+        raise ValueError(f"episodes must be at least 1, not {episodes}")
+    if not scenarios:
+        raise ValueError("give at least one scenario")
+    rows = []
+    bar = _progress(episodes * len(named) * len(scenarios), quiet)
+    try:
+        for scenario in scenarios:
+            for name, policy in named:
+                if bar is not None:
+                    bar.set_description(f"{scenario} / {name}")
+                rows.extend(_run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs, bar))
+    finally:
+        if bar is not None:
+            bar.close()
+    markdown, csv, episodes_csv, document = _core.eval_report(rows)
+    parsed = json.loads(document)
+    result = Evaluation(
+        markdown=markdown,
+        summaries=parsed["summaries"],
+        episodes=parsed["episodes"],
+        figures=parsed["figures"],
+        _files={"results.md": markdown, "results.csv": csv, "episodes.csv": episodes_csv, "results.json": document},
+    )
+    if out is not None:
+        result.write(out)
+    return result
+
+
+def _run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs, bar) -> list:
+    """(policy name, scenario, seed, agent, last info) of each agent's episode."""
+    # Any other name is the server's to parse: an unknown one raises ValueError listing them.
+    built_in = isinstance(policy, str) and policy not in CLIENT_POLICIES
+    env = ParallelEnv(
+        scenario, connect=connect, max_cycles=max_cycles, policy=policy if built_in else None, **env_kwargs
+    )
+    rows = []
+    try:
+        for i in range(episodes):
+            episode_seed = seed + i
+            observations, _ = env.reset(seed=episode_seed)
+            spaces = {agent: env.action_space(agent) for agent in env.possible_agents}
+            for k, agent in enumerate(env.possible_agents):
+                spaces[agent].seed(episode_seed + k)
+            while env.agents:
+                if built_in:
+                    actions = {}
+                elif policy == "idle":
+                    actions = {a: _idle(spaces[a]) for a in env.agents}
+                elif policy == "random":
+                    actions = {a: spaces[a].sample() for a in env.agents}
+                else:
+                    actions = {a: _act(policy, observations[a]) for a in env.agents}
+                observations, _, terminations, truncations, infos = env.step(actions)
+                for agent, info in infos.items():
+                    if terminations[agent] or truncations[agent]:
+                        rows.append((name, scenario, episode_seed, agent, info))
+            if bar is not None:
+                bar.update(1)
+    finally:
+        env.close()
+    return rows
+
+
+def _idle(space):
+    """Keep lane and target speed: meta action 1, or no acceleration and the lane's centre."""
+    if hasattr(space, "n"):
+        return 1
+    return np.zeros(space.shape, dtype=space.dtype)

@@ -1,0 +1,272 @@
+//! `arena eval`: policies compared on scenarios over the same seeds (a paired comparison),
+//! each figure with a 95 % interval (`arena_client::eval`), printed as one table and
+//! written as Markdown, CSV and JSON with box plots of the paper's cost components and
+//! bar charts of success and collision rates. Built-in drivers (`gt:...`, `expert`,
+//! `idm`) run in the server (the env's `policy` option); `idle` and `random` act here.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use arena_client::blocking::{Client, Env};
+use arena_client::eval::{self, Episode, Summary};
+use arena_client::{Action, CreateOptions, ScenarioSource};
+use arena_protocol::session::ConnectionFlags;
+use arena_protocol::{BuiltinPolicy, META_IDLE, Space};
+use indicatif::{ProgressBar, ProgressStyle};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+mod plots;
+
+/// Arguments of `arena eval`.
+#[derive(Debug, clap::Args)]
+pub struct EvalArgs {
+    #[command(flatten)]
+    connection: ConnectionFlags,
+    /// Scenario to evaluate on (repeat for several): merge, overtake, highway, ...
+    #[arg(long = "scenario", required = true)]
+    scenarios: Vec<String>,
+    /// Episodes per policy and scenario; episode i is reset with seed `--seed` + i for
+    /// every policy.
+    #[arg(long, default_value_t = 20)]
+    episodes: u64,
+    /// Policy (repeat for several): gt:<aggressive|normal|conservative>:<nash|stackelberg>,
+    /// expert (gt in the learner's own style, Stackelberg), idm, idle, random.
+    #[arg(long = "policy", default_values_t = ["expert".to_string(), "idm".to_string(), "idle".to_string(), "random".to_string()])]
+    policies: Vec<String>,
+    /// Seed of the first episode.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Episode length in steps, instead of each scenario's.
+    #[arg(long)]
+    max_cycles: Option<u32>,
+    /// Envs stepped together in one round trip.
+    #[arg(long, default_value_t = 16)]
+    batch: u64,
+    /// Folder for results.md, results.csv, episodes.csv, results.json and the plots
+    /// (created if missing).
+    #[arg(long, default_value = "out/eval")]
+    out: PathBuf,
+}
+
+/// Who drives the learners.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Policy {
+    /// A driver of the server.
+    Server(BuiltinPolicy),
+    /// Keep lane and target speed.
+    Idle,
+    /// Uniform over the action space, seeded by the episode's seed.
+    Random,
+}
+
+impl std::str::FromStr for Policy {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, String> {
+        match text {
+            "idle" => Ok(Policy::Idle),
+            "random" => Ok(Policy::Random),
+            _ => text.parse().map(Policy::Server).map_err(|e: String| e + ", idle, random"),
+        }
+    }
+}
+
+/// Runs `arena eval`.
+pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.episodes >= 1, "--episodes must be at least 1");
+    anyhow::ensure!(args.batch >= 1, "--batch must be at least 1");
+    let policies = args
+        .policies
+        .iter()
+        .map(|name| name.parse::<Policy>().map(|p| (name.clone(), p)).map_err(anyhow::Error::msg))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    for (list, what) in [(&args.policies, "--policy"), (&args.scenarios, "--scenario")] {
+        if let Some(twice) = list.iter().enumerate().find_map(|(i, x)| list[..i].contains(x).then_some(x)) {
+            anyhow::bail!("{what} {twice} is given twice");
+        }
+    }
+    let (client, server) = crate::connect(&args.connection)?;
+    let total = args.episodes * (policies.len() * args.scenarios.len()) as u64;
+    let bar = ProgressBar::new(total).with_style(
+        ProgressStyle::with_template("{msg:32} [{bar:30}] {pos}/{len} episodes, {elapsed} (eta {eta})")
+            .map_err(|e| anyhow::anyhow!("progress bar template: {e}"))?
+            .progress_chars("=> "),
+    );
+    let mut episodes = Vec::new();
+    for scenario in &args.scenarios {
+        for (name, policy) in &policies {
+            bar.set_message(format!("{scenario} / {name}"));
+            let run = Run { client: &client, server: &server, scenario, name, policy: *policy, args: &args };
+            episodes.extend(run.episodes(&bar)?);
+        }
+    }
+    bar.finish_and_clear();
+    client.close()?;
+    let summaries = eval::summarise(&episodes);
+    print!("{}", eval::markdown(&summaries));
+    write(&args, &summaries, &episodes)?;
+    Ok(())
+}
+
+/// One policy on one scenario.
+struct Run<'a> {
+    client: &'a Client,
+    server: &'a str,
+    scenario: &'a str,
+    name: &'a str,
+    policy: Policy,
+    args: &'a EvalArgs,
+}
+
+/// An env of a run with the episode it is playing.
+struct Slot {
+    env: Env,
+    seed: u64,
+    random: ChaCha8Rng,
+    live: Vec<String>,
+}
+
+impl Run<'_> {
+    /// Every episode of the run, in seed order, `args.batch` envs at a time.
+    fn episodes(&self, bar: &ProgressBar) -> anyhow::Result<Vec<Episode>> {
+        let options = CreateOptions {
+            max_cycles: self.args.max_cycles,
+            policy: match self.policy {
+                Policy::Server(policy) => Some(policy),
+                _ => None,
+            },
+            ..CreateOptions::default()
+        };
+        let count = self.args.batch.min(self.args.episodes);
+        let mut envs = Vec::with_capacity(count as usize);
+        for _ in 0..count {
+            let source = ScenarioSource::Named(self.scenario.to_string());
+            let env = self
+                .client
+                .create_env(self.server, source, options.clone())
+                .with_context(|| format!("creating an env of scenario '{}' for policy {}", self.scenario, self.name))?;
+            envs.push(env);
+        }
+        let mut done = Vec::new();
+        let seeds: Vec<u64> = (0..self.args.episodes).map(|i| self.args.seed.wrapping_add(i)).collect();
+        for chunk in seeds.chunks(count as usize) {
+            let mut slots = Vec::with_capacity(chunk.len());
+            for (env, &seed) in envs.drain(..chunk.len()).zip(chunk) {
+                slots.push(self.reset(env, seed)?);
+            }
+            done.extend(self.play(&mut slots, bar)?);
+            envs.extend(slots.into_iter().map(|slot| slot.env));
+        }
+        for mut env in envs {
+            env.close()?;
+        }
+        done.sort_by(|a, b| (a.seed, &a.agent).cmp(&(b.seed, &b.agent)));
+        Ok(done)
+    }
+
+    fn reset(&self, mut env: Env, seed: u64) -> anyhow::Result<Slot> {
+        let reply =
+            env.reset(Some(seed), vec![]).with_context(|| format!("resetting '{}' with seed {seed}", self.scenario))?;
+        let live = reply.observations.into_iter().map(|(agent, _)| agent).collect();
+        Ok(Slot { env, seed, random: ChaCha8Rng::seed_from_u64(seed), live })
+    }
+
+    /// Steps every slot's episode to its end, all in one batch per step.
+    fn play(&self, slots: &mut [Slot], bar: &ProgressBar) -> anyhow::Result<Vec<Episode>> {
+        let mut done = Vec::new();
+        loop {
+            let mut playing: Vec<&mut Slot> = slots.iter_mut().filter(|slot| !slot.live.is_empty()).collect();
+            if playing.is_empty() {
+                return Ok(done);
+            }
+            let actions: Vec<Vec<(String, Action)>> = playing.iter_mut().map(|slot| self.actions(slot)).collect();
+            let mut envs: Vec<&mut Env> = playing.iter_mut().map(|slot| &mut slot.env).collect();
+            let replies = self.client.step_batch(&mut envs, actions)?;
+            for (slot, reply) in playing.into_iter().zip(replies) {
+                let reply = reply.with_context(|| {
+                    format!("stepping '{}' (policy {}, seed {})", self.scenario, self.name, slot.seed)
+                })?;
+                for (agent, info) in &reply.infos {
+                    if !reply.agents.contains(agent) {
+                        let episode = Episode::from_info(self.name, self.scenario, slot.seed, agent, info)
+                            .map_err(anyhow::Error::msg)?;
+                        done.push(episode);
+                    }
+                }
+                slot.live = reply.agents;
+                if slot.live.is_empty() {
+                    bar.inc(1);
+                }
+            }
+        }
+    }
+
+    /// This step's actions of the slot's live agents; none when the server drives them.
+    fn actions(&self, slot: &mut Slot) -> Vec<(String, Action)> {
+        let specs = slot.env.specs();
+        let mut actions = Vec::with_capacity(slot.live.len());
+        for agent in &slot.live {
+            let space = specs.action_spaces.iter().find(|(a, _)| a == agent).map(|(_, s)| s);
+            let action = match (self.policy, space) {
+                (Policy::Server(_), _) => continue,
+                (Policy::Idle, Some(Space::Box { .. })) => Action::Continuous([0.0, 0.0]),
+                (Policy::Idle, _) => Action::Meta(META_IDLE),
+                (Policy::Random, Some(Space::Box { .. })) => {
+                    Action::Continuous([slot.random.random_range(-1.0..=1.0), slot.random.random_range(-1.0..=1.0)])
+                }
+                (Policy::Random, _) => Action::Meta(slot.random.random_range(0..5)),
+            };
+            actions.push((agent.clone(), action));
+        }
+        actions
+    }
+}
+
+/// Writes the tables and plots into `args.out`.
+fn write(args: &EvalArgs, summaries: &[Summary], episodes: &[Episode]) -> anyhow::Result<()> {
+    let out = &args.out;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let save = |file: &str, text: String| -> anyhow::Result<PathBuf> {
+        let path = out.join(file);
+        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        Ok(path)
+    };
+    save("results.md", markdown_document(args, summaries))?;
+    save("results.csv", eval::csv(summaries))?;
+    save("episodes.csv", eval::episodes_csv(episodes))?;
+    save("results.json", eval::json(summaries, episodes))?;
+    for scenario in &args.scenarios {
+        plots::costs(&out.join(format!("costs_{scenario}.png")), scenario, episodes)?;
+        plots::rates(&out.join(format!("rates_{scenario}.png")), scenario, summaries)?;
+    }
+    println!("written: {}", written(out, &args.scenarios));
+    Ok(())
+}
+
+fn written(out: &Path, scenarios: &[String]) -> String {
+    let plots = if scenarios.len() == 1 { scenarios[0].clone() } else { "<scenario>".to_string() };
+    format!(
+        "{0}/results.md, results.csv, episodes.csv, results.json, costs_{plots}.png, rates_{plots}.png",
+        out.display()
+    )
+}
+
+/// results.md: the command's settings, the table, and what each column means.
+fn markdown_document(args: &EvalArgs, summaries: &[Summary]) -> String {
+    let mut text = format!(
+        "# arena eval\n\n{} episodes per policy and scenario, seeds {}..{} (the same for every policy){}.\n\n",
+        args.episodes,
+        args.seed,
+        args.seed.wrapping_add(args.episodes - 1),
+        args.max_cycles.map_or(String::new(), |n| format!(", {n} steps per episode"))
+    );
+    text.push_str(&eval::markdown(summaries));
+    text.push_str(
+        "\nRates: mean and 95 % Wilson interval. Other figures: mean ± half-width of the 95 % t interval, \
+         over the episodes where the figure applies.\n\n",
+    );
+    for (_, heading, what) in eval::FIGURES {
+        text.push_str(&format!("- **{heading}**: {what}\n"));
+    }
+    text
+}

@@ -1,0 +1,134 @@
+//! `arena eval` run as a user runs it, against a real arena-server on a loopback port:
+//! its cost RMS and t_c for the game-theoretic EC equal `arena paper`'s, the same seeds
+//! give the same tables, and bad input is refused with a message naming it.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use arena_paper::{PaperOptions, PaperScenario};
+use arena_protocol::session::{ConnectionFlags, Role};
+use arena_server::transport::{Limits, Scenarios, Server};
+use arena_sim::dynamics::Style;
+use arena_sim::gt::Game;
+
+/// A server on a free 127.0.0.1 port, kept alive with its runtime while the test runs.
+struct Harness {
+    _runtime: tokio::runtime::Runtime,
+    _server: Server,
+    endpoint: String,
+}
+
+fn serve() -> Harness {
+    let port = std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a free port").port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let runtime = tokio::runtime::Runtime::new().expect("runtime");
+    let flags = ConnectionFlags { listen: vec![endpoint.clone()], ..ConnectionFlags::default() };
+    let server = runtime.block_on(async {
+        let session = zenoh::open(flags.zenoh_config(Role::Server).expect("config")).await.expect("open session");
+        let scenarios = Scenarios::load(None).expect("the built-in scenarios load");
+        Server::start(session, "arena", scenarios, Limits::default()).await.expect("start server")
+    });
+    Harness { _runtime: runtime, _server: server, endpoint }
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("arena-eval-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn eval(harness: &Harness, out: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_arena"))
+        .args(["eval", "--connect", &harness.endpoint, "--out"])
+        .arg(out)
+        .args(args)
+        .output()
+        .expect("run arena eval")
+}
+
+fn results(out: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(out.join("results.json")).expect("results.json written");
+    serde_json::from_str(&text).expect("results.json is JSON")
+}
+
+#[test]
+fn the_rms_costs_and_t_c_of_the_gt_ec_on_merge_equal_arena_papers() {
+    let harness = serve();
+    let out = out_dir("paper");
+    let policies = ["gt:aggressive:stackelberg", "gt:normal:stackelberg", "gt:conservative:stackelberg"];
+    let mut args = vec!["--scenario", "merge", "--episodes", "1", "--max-cycles", "160"];
+    for policy in policies {
+        args.extend(["--policy", policy]);
+    }
+    let output = eval(&harness, &out, &args);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let json = results(&out);
+    let figure = |episode: &serde_json::Value, key: &str| {
+        let k = arena_client::eval::FIGURES.iter().position(|(name, ..)| *name == key).expect("a figure");
+        episode["figures"][k].as_f64().expect("a number")
+    };
+    for (policy, style) in policies.into_iter().zip(Style::ALL) {
+        let (record, _) = arena_paper::run(PaperScenario::A, style, Game::Stackelberg, &PaperOptions::default())
+            .expect("the paper's run");
+        let episode = json["episodes"].as_array().unwrap().iter().find(|e| e["policy"] == policy).expect("ran");
+        let rms = record.rms_cost;
+        assert_eq!(figure(episode, "rms_safety"), rms.safety, "{policy}");
+        assert_eq!(figure(episode, "rms_comfort"), rms.comfort, "{policy}");
+        assert_eq!(figure(episode, "rms_efficiency"), rms.efficiency, "{policy}");
+        assert_eq!(Some(figure(episode, "t_c")), record.t_c, "{policy}");
+        assert_eq!(figure(episode, "success"), 1.0, "{policy} merges");
+    }
+}
+
+#[test]
+fn the_same_seeds_give_identical_tables() {
+    let harness = serve();
+    let args = [
+        "--scenario",
+        "merge-random",
+        "--episodes",
+        "3",
+        "--seed",
+        "7",
+        "--policy",
+        "expert",
+        "--policy",
+        "random",
+        "--policy",
+        "idle",
+    ];
+    let (first, second) = (out_dir("a"), out_dir("b"));
+    for out in [&first, &second] {
+        let output = eval(&harness, out, &args);
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    }
+    for file in ["results.md", "results.csv", "episodes.csv", "results.json"] {
+        let read = |dir: &Path| std::fs::read_to_string(dir.join(file)).expect("written");
+        assert_eq!(read(&first), read(&second), "{file}");
+    }
+    let json = results(&first);
+    assert_eq!(json["episodes"].as_array().map(Vec::len), Some(9), "3 policies x 3 episodes");
+    let seeds: Vec<u64> = json["episodes"].as_array().unwrap().iter().filter_map(|e| e["seed"].as_u64()).collect();
+    assert_eq!(seeds, [7, 8, 9].repeat(3), "every policy plays the same seeds");
+    for plot in ["costs_merge-random.png", "rates_merge-random.png"] {
+        let bytes = std::fs::read(first.join(plot)).expect("plot written");
+        assert!(bytes.starts_with(b"\x89PNG"), "{plot} is a PNG");
+    }
+}
+
+#[test]
+fn bad_policies_scenarios_and_counts_are_refused_by_name() {
+    let harness = serve();
+    let out = out_dir("bad");
+    let cases: [(&[&str], &str); 4] = [
+        (&["--scenario", "merge", "--policy", "gt:calm:nash"], "unknown built-in policy 'gt:calm:nash'"),
+        (&["--scenario", "nowhere"], "nowhere"),
+        (&["--scenario", "merge", "--episodes", "0"], "--episodes must be at least 1"),
+        (&["--scenario", "merge", "--policy", "idle", "--policy", "idle"], "--policy idle is given twice"),
+    ];
+    for (args, message) in cases {
+        let output = eval(&harness, &out, args);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success() && stderr.contains(message), "{args:?}: {stderr}");
+    }
+}

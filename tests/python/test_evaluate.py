@@ -1,0 +1,64 @@
+"""highway_arena.evaluate against the live server: the same figures as `arena eval` for
+the same policies and seeds, an external callable measured exactly as the built-in it
+imitates, files and plots written, and bad input refused by name."""
+
+import os
+import pathlib
+import subprocess
+
+import pytest
+
+import highway_arena
+
+
+def _arena_binary():
+    """The `arena` CLI built beside the server the suite runs (cargo builds both)."""
+    path = pathlib.Path(highway_arena.find_server_binary()).with_name("arena")
+    assert path.exists(), f"{path} is missing: build the workspace (cargo test --workspace --no-run)"
+    return path
+
+
+def test_the_same_policies_and_seeds_give_the_table_arena_eval_prints(server, tmp_path):
+    policies = ["expert", "idm", "idle"]
+    ours = highway_arena.evaluate(policies, ["merge-random"], episodes=3, seed=5, quiet=True)
+    command = [str(_arena_binary()), "eval", "--connect", server.endpoint, "--out", str(tmp_path)]
+    command += ["--scenario", "merge-random", "--episodes", "3", "--seed", "5"]
+    for policy in policies:
+        command += ["--policy", policy]
+    cli = subprocess.run(command, capture_output=True, text=True, check=True)
+    assert ours.markdown in cli.stdout, f"python:\n{ours.markdown}\ncli:\n{cli.stdout}"
+    assert ours.summary("merge-random", "expert")["success"]["n"] == 3
+
+
+def test_an_external_policy_gets_the_figures_of_the_built_in_it_imitates():
+    def keep_lane(observation):
+        return 1
+
+    result = highway_arena.evaluate(
+        {"idle": "idle", "callable": keep_lane}, ["merge-random", "highway"], episodes=2, max_cycles=30, quiet=True
+    )
+    for scenario in ("merge-random", "highway"):
+        built_in, external = result.summary(scenario, "idle"), result.summary(scenario, "callable")
+        assert built_in == external, scenario
+    returns = [e["figures"][-1] for e in result.episodes]
+    assert all(r is not None for r in returns) and len(returns) == 8
+
+
+def test_results_are_written_with_plots(tmp_path):
+    result = highway_arena.evaluate(["expert", "random"], "merge", episodes=2, out=tmp_path, quiet=True)
+    names = sorted(os.listdir(tmp_path))
+    assert names == [
+        "costs_merge.png", "episodes.csv", "rates_merge.png", "results.csv", "results.json", "results.md",
+    ]
+    assert (tmp_path / "costs_merge.png").read_bytes().startswith(b"\x89PNG")
+    assert result.summary("merge", "expert")["success"]["mean"] == 1.0, "the AV merges"
+    assert len((tmp_path / "episodes.csv").read_text().splitlines()) == 1 + 4
+
+
+def test_bad_input_is_refused_by_name():
+    with pytest.raises(ValueError, match="unknown built-in policy 'gt:calm:nash'"):
+        highway_arena.evaluate(["gt:calm:nash"], ["merge"], episodes=1, quiet=True)
+    with pytest.raises(ValueError, match="episodes must be at least 1"):
+        highway_arena.evaluate(["idle"], ["merge"], episodes=0, quiet=True)
+    with pytest.raises(ValueError, match="appear twice"):
+        highway_arena.evaluate([lambda o: 1, lambda o: 2], ["merge"], episodes=1, quiet=True)

@@ -39,6 +39,10 @@ pub struct VehicleParams {
     /// forces fade out linearly, so a standing car neither divides by zero nor creeps
     /// sideways. 1.0, chosen here.
     pub low_speed_guard: f64,
+    /// The largest road-wheel angle delta (rad) the steering reaches: 0.6 (34 degrees),
+    /// a passenger car's lock. The paper's runs never come near it; a car that steers
+    /// for a preview point while standing does.
+    pub max_steer: f64,
 }
 
 impl Default for VehicleParams {
@@ -53,6 +57,7 @@ impl Default for VehicleParams {
             length: 5.0,
             width: 2.0,
             low_speed_guard: 1.0,
+            max_steer: 0.6,
         }
     }
 }
@@ -250,6 +255,7 @@ struct Model {
     inv_inertia: f64,
     guard: f64,
     inv_guard: f64,
+    max_steer: f64,
     preview_time: f64,
     /// 1 / (a T_d) and 1 / (a T_d^2) of eq. (1).
     rate_gain: f64,
@@ -270,6 +276,7 @@ impl Model {
             inv_inertia: 1.0 / vehicle.yaw_inertia,
             guard: vehicle.low_speed_guard,
             inv_guard: 1.0 / vehicle.low_speed_guard,
+            max_steer: vehicle.max_steer,
             preview_time,
             rate_gain: 1.0 / (damping * delay),
             angle_gain: 1.0 / (damping * delay * delay),
@@ -403,6 +410,11 @@ impl Stepper {
         });
         let mut next = VehicleState::from_array(x);
         next.vx = next.vx.max(0.0);
+        // The steering lock: the wheel stops there and its rate with it.
+        if next.steer.abs() > self.model.max_steer {
+            next.steer = next.steer.clamp(-self.model.max_steer, self.model.max_steer);
+            next.steer_rate = 0.0;
+        }
         next
     }
 }

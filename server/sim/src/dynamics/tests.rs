@@ -154,3 +154,24 @@ fn a_standing_car_stays_put_and_never_reverses() {
     assert_eq!(state.vx, 0.0);
     assert!(state.s.abs() < 1e-9 && state.d.abs() < 1e-9, "moved to ({}, {})", state.s, state.d);
 }
+
+#[test]
+fn a_lane_change_begun_at_a_standstill_stays_a_gentle_one() {
+    // A car waiting at a lane end, then pulling into the lane beside it (IDM + MOBIL do
+    // this, and so can a learner): the driver keeps steering towards the preview point
+    // while the car stands, so only the wheels' stop keeps the start from being violent.
+    let vehicle = VehicleParams::default();
+    for style in Style::ALL {
+        let driver = DriverParams::for_style(style);
+        let mut state = VehicleState::cruising(0.0, 0.0, 0.0);
+        for k in 0..1500 {
+            let accel = if k < 300 { 0.0 } else { 1.0 };
+            let before = state;
+            state = step(&state, Command { accel, preview: 4.0 }, 0.0, DT, &vehicle, &driver);
+            assert!(state.steer.abs() <= vehicle.max_steer + 1e-12, "{style:?} step {k}: steer {}", state.steer);
+            assert!(state.vx <= 13.0 && state.s >= before.s - 1e-9, "{style:?} step {k}: {state:?}");
+            assert!(state.heading.abs() < 1.0, "{style:?} step {k}: heading {}", state.heading);
+        }
+        assert!((state.d - 4.0).abs() < 1.0, "{style:?} ends in the lane it pulled into: d = {}", state.d);
+    }
+}

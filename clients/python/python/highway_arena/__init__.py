@@ -8,6 +8,9 @@ over Zenoh.
     observations, rewards, terminations, truncations, infos = env.step({"ec_0": 1})
     env.close()
 
+``highway_arena.record(scenario, episodes)`` writes a Minari dataset of the built-in
+game-theoretic AV driving in the learner's place (``pip install highway-arena[datasets]``).
+
 ``connect`` defaults to $HIGHWAY_ARENA_CONNECT, else tcp/127.0.0.1:7447 (where
 ``arena-server`` listens by default); ``launch_server()`` starts one for you.
 """
@@ -27,6 +30,7 @@ from ._errors import (
 )
 from ._server import LocalServer, find_server_binary, launch_server
 from .batch import BatchEnv
+from .datasets import record
 from .parallel import ParallelEnv, default_connect
 from .single import GymEnv
 from .vector import VectorEnv
@@ -52,6 +56,7 @@ __all__ = [
     "gym_env",
     "launch_server",
     "parallel_env",
+    "record",
     "vector_env",
 ]
 

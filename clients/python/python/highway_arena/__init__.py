@@ -9,7 +9,8 @@ over Zenoh.
     env.close()
 
 ``highway_arena.record(scenario, episodes)`` writes a Minari dataset of the built-in
-game-theoretic AV driving in the learner's place (``pip install highway-arena[datasets]``).
+game-theoretic AV driving in the learner's place (``pip install highway-arena[datasets]``);
+``highway_arena.bc`` fits a numpy-only behaviour-cloning policy to one.
 
 ``connect`` defaults to $HIGHWAY_ARENA_CONNECT, else tcp/127.0.0.1:7447 (where
 ``arena-server`` listens by default); ``launch_server()`` starts one for you.

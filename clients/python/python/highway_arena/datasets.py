@@ -261,16 +261,18 @@ def record(
 
 
 def rollout(env, policy, episodes: int, seed: int = 0) -> dict:
-    """Plays ``policy(observation) -> action`` on ``episodes`` episodes of a Gymnasium
-    ``env`` (episode ``i`` reset with ``seed + i``); returns ``returns`` (one per
-    episode), ``end_reasons``, ``failures`` (episodes ended by a collision, going off
-    the road or running out of lane) and ``failure_rate``."""
+    """Plays ``policy(observation) -> action`` (or, for ``policy="expert"``, each
+    step's ``expert_action`` info: the env needs ``expert=``) on ``episodes`` episodes
+    of a Gymnasium ``env`` (episode ``i`` reset with ``seed + i``); returns ``returns``
+    (one per episode), ``mean_return``, ``end_reasons``, ``failures`` (episodes ended
+    by a collision, going off the road or running out of lane) and ``failure_rate``."""
     returns, reasons = [], []
     for i in range(int(episodes)):
         observation, info = env.reset(seed=int(seed) + i)
         total = 0.0
         while True:
-            observation, reward, terminated, truncated, info = env.step(policy(observation))
+            action = info["expert_action"] if isinstance(policy, str) and policy == "expert" else policy(observation)
+            observation, reward, terminated, truncated, info = env.step(action)
             total += reward
             if terminated or truncated:
                 break

@@ -194,11 +194,9 @@ def record(
         "max_cycles": max_cycles,
         "overrides": overrides or None,
     }
-    spec = env_spec(scenario, **options)
-    env = GymEnv(scenario, connect=connect, **{key: value for key, value in options.items() if key != "overrides"},
-                 overrides=overrides)
+    env = GymEnv(scenario, connect=connect, **{**options, "overrides": overrides})
     # The dataset's env_spec: the registered id and creation options, no endpoint.
-    env.spec = spec
+    env.spec = env_spec(scenario, **options)
 
     if progress is None:
         progress = sys.stderr.isatty()

@@ -8,6 +8,10 @@ over Zenoh.
     observations, rewards, terminations, truncations, infos = env.step({"ec_0": 1})
     env.close()
 
+``highway_arena.record(scenario, episodes)`` writes a Minari dataset of the built-in
+game-theoretic AV driving in the learner's place (``pip install highway-arena[datasets]``);
+``highway_arena.bc`` fits a numpy-only behaviour-cloning policy to one.
+
 ``connect`` defaults to $HIGHWAY_ARENA_CONNECT, else tcp/127.0.0.1:7447 (where
 ``arena-server`` listens by default); ``launch_server()`` starts one for you.
 """
@@ -27,6 +31,7 @@ from ._errors import (
 )
 from ._server import LocalServer, find_server_binary, launch_server
 from .batch import BatchEnv
+from .datasets import record
 from .evaluation import Evaluation, evaluate
 from .parallel import ParallelEnv, default_connect
 from .single import GymEnv
@@ -55,6 +60,7 @@ __all__ = [
     "gym_env",
     "launch_server",
     "parallel_env",
+    "record",
     "vector_env",
 ]
 

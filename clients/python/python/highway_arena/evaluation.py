@@ -84,11 +84,12 @@ def _named(policies) -> list:
 
 
 def _act(policy, observation):
-    """The action of an external policy: an SB3-style model (``predict``) or a callable."""
-    if hasattr(policy, "predict"):
-        action, _ = policy.predict(observation, deterministic=True)
-        return action
-    return policy(observation)
+    """The action of an external policy: a callable, or an SB3-style model (``predict``
+    returning (action, state))."""
+    if callable(policy):
+        return policy(observation)
+    action, _ = policy.predict(observation, deterministic=True)
+    return action
 
 
 def _progress(total, quiet):

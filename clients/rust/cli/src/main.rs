@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod eval;
 mod play;
+mod record;
 
 /// Command-line client of highway-arena. `bench`, `eval` and `play` talk to a running
 /// `arena-server` (start one with `arena-server`); `paper` runs in process.
@@ -24,6 +25,9 @@ enum Command {
     /// success, collision and off-road rates, t_c, speed, gaps, the paper's cost RMS and
     /// return, with 95 % intervals; a table, Markdown, CSV, JSON and PNG plots.
     Eval(eval::EvalArgs),
+    /// Record the built-in AV driving in a learner's place as a Minari dataset (runs
+    /// `python -m highway_arena.record`; `arena record -- --help` for its options).
+    Record(record::RecordArgs),
     /// Step an env with a built-in policy and watch it as text in the terminal.
     Play(play::PlayArgs),
     /// Reproduce the paper's Scenario A and B tables and plots, in process.
@@ -55,6 +59,7 @@ fn main() -> anyhow::Result<()> {
         Command::Bench(args) => bench::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Play(args) => play::run(args),
+        Command::Record(args) => record::run(args),
         Command::Paper(args) => arena_paper::report::run(args),
     }
 }

@@ -54,11 +54,8 @@ def main() -> None:
         print(result.markdown)
         print(f"written to {args.out}")
 
-    if args.connect:
-        run(args.connect)
-    else:
-        with highway_arena.launch_server() as server:
-            run(server.endpoint)
+    with highway_arena.serving(args.connect) as connect:
+        run(connect)
 
 
 if __name__ == "__main__":

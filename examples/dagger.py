@@ -91,11 +91,8 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as scratch:
         path = args.path or scratch
-        if args.connect:
-            run(args.connect, path)
-        else:
-            with highway_arena.launch_server() as server:
-                run(server.endpoint, path)
+        with highway_arena.serving(args.connect) as connect:
+            run(connect, path)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,7 @@ from ._errors import (
     ServerGoneError,
     ServerNotFoundError,
 )
-from ._server import LocalServer, find_server_binary, launch_server
+from ._server import LocalServer, find_server_binary, launch_server, serving
 from .batch import BatchEnv
 from .datasets import record
 from .evaluation import Evaluation, evaluate
@@ -61,6 +61,7 @@ __all__ = [
     "launch_server",
     "parallel_env",
     "record",
+    "serving",
     "vector_env",
 ]
 

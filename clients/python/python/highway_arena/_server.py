@@ -115,3 +115,14 @@ def launch_server(binary=None, listen=None, args=(), timeout=30.0):
         for stream in (process.stdout, process.stderr):
             if stream:
                 stream.close()
+
+
+@contextlib.contextmanager
+def serving(connect=None):
+    """Yields ``connect`` when given (a running server's endpoint), else the endpoint of
+    a server launched for the block: what scripts with a ``--connect`` option need."""
+    if connect:
+        yield connect
+        return
+    with launch_server() as server:
+        yield server.endpoint

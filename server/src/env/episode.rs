@@ -123,7 +123,7 @@ fn succeeded(world: &World, id: VehicleId, goal: &Goal, end_reason: &str) -> boo
 /// The smallest bumper-to-bumper gap (m) and time to collision (s) to the cars that
 /// matter now: the car ahead in the lane the vehicle is in and in the lane it changes
 /// to, and the car behind in that target lane. Infinite when there is none (or, for the
-/// time, when no gap closes).
+/// time, when no gap ahead or behind closes).
 fn closest_approach(world: &mut World, id: VehicleId) -> (f64, f64) {
     let scene = world.scene();
     let car = scene.car(id);
@@ -141,7 +141,8 @@ fn closest_approach(world: &mut World, id: VehicleId) -> (f64, f64) {
         pairs.push((s - behind.state.s - length, behind.speed() - speed));
     }
     pairs.iter().fold((f64::INFINITY, f64::INFINITY), |(gap, ttc), &(g, closing)| {
-        let time = if closing > 0.0 { g.max(0.0) / closing } else { f64::INFINITY };
+        // Beside a car (g <= 0) there is no time to close a gap along the road.
+        let time = if g > 0.0 && closing > 0.0 { g / closing } else { f64::INFINITY };
         (gap.min(g), ttc.min(time))
     })
 }

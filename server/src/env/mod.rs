@@ -60,6 +60,9 @@ struct AgentSlot {
     expert: Option<Box<GtDriver>>,
     /// The figures of its episode so far.
     stats: Option<episode::EpisodeStats>,
+    /// The speed its scenario has it aim for (m/s), fixed for the episode: the reward's
+    /// yardstick of progress (an action that lowers the target speed does not lower it).
+    aim: f64,
 }
 
 /// A PettingZoo-Parallel env over one scenario.
@@ -138,6 +141,7 @@ impl Env {
                 live: false,
                 expert: None,
                 stats: None,
+                aim: 0.0,
             })
             .collect();
         Ok(Env {
@@ -219,6 +223,7 @@ impl Env {
             agent.expert =
                 self.expert.map(|game| Box::new(GtDriver::new(game, Role::Leader, world.gt_params(agent.vehicle))));
             agent.stats = Some(episode::EpisodeStats::start(&world, agent.vehicle));
+            agent.aim = world.vehicle(agent.vehicle).target_speed;
         }
         let outcome = self
             .agents
@@ -291,7 +296,7 @@ impl Env {
             let vehicle = world.vehicle(agent.vehicle);
             let crashed_now = driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
             let terminated = vehicle.status != Status::Driving;
-            let reward = reward::reward(&self.episode.reward, self.max_cycles, costs[k].weighted, crashed_now);
+            let reward = reward::reward(&self.episode.reward, self.max_cycles, &costs[k], agent.aim, crashed_now);
             let mut info = reward::info(world, agent.vehicle, Some(&costs[k]));
             info.values.push(("action_applied".to_string(), InfoValue::Bool(applied[i])));
             let stats = agent.stats.get_or_insert_with(|| episode::EpisodeStats::start(world, agent.vehicle));

@@ -1,7 +1,9 @@
 //! Rewards and infos (docs/rewards.md). An agent's reward for a step is the paper's cost
 //! J (eq. 9, with its own style's Table III weights, averaged over the step's control
 //! periods: the yardstick the built-in AV decides by) mapped into (0, 1] by
-//! r = J_0 / (J_0 + J), as highway-env maps its rewards into [0, 1]; the step it crashes
+//! J_0 / (J_0 + J), as highway-env maps its rewards into [0, 1], times the share of its
+//! aimed-for speed it drove (the paper's J charges nothing for standing still behind a
+//! lane end or a slow car, and PPO learned to stop); the step it crashes
 //! or leaves the road earns `RewardSpec::crash` (by default minus the episode length, so
 //! any episode with a crash returns less than any without). Infos carry the raw cost and
 //! its three components so learners can be compared on each.
@@ -13,15 +15,17 @@ use arena_sim::scenario::RewardSpec;
 use arena_sim::world::{Status, VehicleId, World};
 
 /// The reward of one step: `spec.crash` (default: minus `max_cycles`) on the step the
-/// agent crashes or leaves the road, else J_0 / (J_0 + J) in (0, 1].
-pub fn reward(spec: &RewardSpec, max_cycles: u32, cost: f64, crashed_now: bool) -> f64 {
+/// agent crashes or leaves the road, else J_0 / (J_0 + J) times the step's mean speed
+/// over `aim` (at most 1): in [0, 1].
+pub fn reward(spec: &RewardSpec, max_cycles: u32, step: &StepCost, aim: f64, crashed_now: bool) -> f64 {
     if crashed_now {
         return spec.crash.unwrap_or(-f64::from(max_cycles));
     }
-    if cost.is_nan() {
+    if step.weighted.is_nan() {
         return 0.0;
     }
-    spec.cost_scale / (spec.cost_scale + cost.max(0.0))
+    let progress = if aim > 0.0 { (step.speed / aim).clamp(0.0, 1.0) } else { 1.0 };
+    spec.cost_scale / (spec.cost_scale + step.weighted.max(0.0)) * progress
 }
 
 /// Why a vehicle's episode ended, for the `end_reason` info: `collision`, `lane_end`
@@ -54,6 +58,8 @@ pub struct StepCost {
     pub squares: CostComponents,
     /// How many samples.
     pub samples: u32,
+    /// Mean speed along the lane (m/s) at the samples.
+    pub speed: f64,
 }
 
 /// Advances the world by `step_dt` and returns each vehicle's mean cost over it,
@@ -74,6 +80,7 @@ pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<S
                     sum.components = sum.components + cost;
                     sum.squares = sum.squares + cost.squared();
                     sum.samples += 1;
+                    sum.speed += world.vehicle(id).state.lane_speed();
                     sum.weighted += cost.weighted(world.vehicle(id).style);
                 }
             }
@@ -88,6 +95,7 @@ pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<S
                 efficiency: sum.components.efficiency / n,
             },
             weighted: sum.weighted / n,
+            speed: sum.speed / n,
             ..*sum
         })
         .collect()

@@ -16,6 +16,7 @@ measured on episodes they never saw.
 from __future__ import annotations
 
 import argparse
+import pathlib
 import tempfile
 import time
 
@@ -47,7 +48,7 @@ def main() -> None:
         for path in args.ppo:
             from stable_baselines3 import PPO
 
-            policies[f"ppo ({path})"] = PPO.load(path, device="cpu")
+            policies[f"ppo ({pathlib.Path(path).stem})"] = PPO.load(path, device="cpu")
         result = highway_arena.evaluate(
             policies, [args.scenario], episodes=args.episodes, seed=args.seed, connect=connect, out=args.out
         )

@@ -160,6 +160,9 @@ pub struct CreateOptions {
     /// Drive every learner in the server with this built-in policy (`arena eval`): the
     /// agents stay agents (observations, rewards, infos), and steps carry no actions.
     pub policy: Option<BuiltinPolicy>,
+    /// Add to every info the game-theoretic cars' solver counts (`gt.<car>.plans`,
+    /// `.qp_iterations`, `.qp_iterations_total`, `.fallbacks`, `.inexact`).
+    pub diagnostics: bool,
 }
 
 /// A driver the server has, in a learner's place.
@@ -617,6 +620,7 @@ mod tests {
                     render_size: Some((10, 20)),
                     expert: Some(Game::Stackelberg),
                     policy: Some(BuiltinPolicy::Gt { style: Some(Style::Conservative), game: Game::Nash }),
+                    diagnostics: true,
                 },
             },
             RequestBody::CreateEnv {

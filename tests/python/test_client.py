@@ -254,3 +254,20 @@ def test_reset_options_set_scenario_keys_for_one_episode_and_unknown_keys_are_re
     with pytest.raises(highway_arena.ScenarioError, match="nobody"):
         env.reset(seed=0, options={"overrides": {"vehicle.nobody.speed": 23.0}})
     env.close()
+
+
+def test_diagnostics_on_request_count_every_game_theoretic_cars_plans():
+    env = highway_arena.parallel_env("highway-gt", diagnostics=True, max_cycles=3)
+    _, infos = env.reset(seed=1)
+    _, _, _, _, infos = env.step({})
+    info = infos["ego_0"]
+    cars = sorted({key.split(".")[1] for key in info if key.startswith("gt.")})
+    assert len(cars) == 8, cars  # highway-gt's eight game-theoretic cars
+    # One env step is one simulated second: ten control periods, one plan each.
+    assert all(info[f"gt.{car}.plans"] == 10 for car in cars), info
+    assert all(info[f"gt.{car}.qp_iterations_total"] >= info[f"gt.{car}.qp_iterations"] > 0 for car in cars)
+    env.close()
+    plain = highway_arena.parallel_env("highway-gt", max_cycles=3)
+    _, infos = plain.reset(seed=1)
+    assert not any(key.startswith("gt.") for key in infos["ego_0"])
+    plain.close()

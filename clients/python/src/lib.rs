@@ -96,7 +96,7 @@ impl Client {
 
     /// Creates an env: `scenario` names one on the server, or `text` is a scenario
     /// file's TOML (then `scenario` names it in error messages).
-    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None, policy = None))]
+    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None, policy = None, diagnostics = false))]
     #[allow(clippy::too_many_arguments)]
     fn create_env(
         &self,
@@ -111,6 +111,7 @@ impl Client {
         render_size: Option<(u32, u32)>,
         expert: Option<String>,
         policy: Option<String>,
+        diagnostics: bool,
     ) -> PyResult<Env> {
         let overrides = overrides
             .into_iter()
@@ -148,7 +149,8 @@ impl Client {
             Some(text) => ScenarioSource::Inline { file_name: scenario, text },
             None => ScenarioSource::Named(scenario),
         };
-        let options = CreateOptions { overrides, action_type, observation, max_cycles, render_size, expert, policy };
+        let options =
+            CreateOptions { overrides, action_type, observation, max_cycles, render_size, expert, policy, diagnostics };
         let env = py.detach(|| self.inner.create_env(&server, source, options)).map_err(to_py_err)?;
         Ok(Env { specs: env.specs().clone(), inner: Mutex::new(Some(env)) })
     }

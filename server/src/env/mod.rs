@@ -23,7 +23,7 @@ use arena_sim::dynamics::Style;
 use arena_sim::gt::{Game, GtDriver, expert_decision, plan};
 use arena_sim::scenario::{ActionKind, DriverSpec, Scenario};
 use arena_sim::scene::Role;
-use arena_sim::world::{Status, VehicleId, World};
+use arena_sim::world::{Driver, Status, VehicleId, World};
 
 pub use observation::{KINEMATICS_FEATURES, KINEMATICS_VEHICLES};
 
@@ -78,6 +78,8 @@ pub struct Env {
     expert: Option<Game>,
     /// The built-in driver of every learner, when the server drives them.
     policy: Option<BuiltinPolicy>,
+    /// Whether infos carry the game-theoretic cars' solver counts.
+    diagnostics: bool,
     seeds: ChaCha8Rng,
     world: Option<World>,
     agents: Vec<AgentSlot>,
@@ -152,6 +154,7 @@ impl Env {
             render_size,
             expert: options.expert.map(game),
             policy: options.policy,
+            diagnostics: options.diagnostics,
             seeds: ChaCha8Rng::seed_from_u64(entropy),
             world: None,
             agents,
@@ -232,6 +235,9 @@ impl Env {
                 let observation = observation::observe(self.observation, world.scene(), agent.vehicle, agent.action);
                 let mut info = reward::info(&world, agent.vehicle, None);
                 add_expert(&mut info, &mut world, agent);
+                if self.diagnostics {
+                    add_diagnostics(&mut info, &world);
+                }
                 (agent.name.clone(), observation, info)
             })
             .collect();
@@ -308,6 +314,9 @@ impl Env {
             } else {
                 add_expert(&mut info, world, agent);
             }
+            if self.diagnostics {
+                add_diagnostics(&mut info, world);
+            }
             results.push(AgentStep {
                 agent: agent.name.clone(),
                 observation: observation::observe(self.observation, world.scene(), agent.vehicle, agent.action),
@@ -339,6 +348,26 @@ impl Env {
             RenderMode::RgbArray => render::rgb(world, focus, self.render_size),
             RenderMode::Ansi => Frame::Ansi(render::ansi(world, focus)),
         })
+    }
+}
+
+/// On request, every game-theoretic car's solver counts since the episode began, keyed
+/// `gt.<car>.<count>`, cars in the world's order (named ones by name, then traffic). No timings: infos are bit-reproducible, so
+/// decision times live in the benchmarks (docs/performance.md).
+fn add_diagnostics(info: &mut Info, world: &World) {
+    for vehicle in world.vehicles() {
+        let Driver::Gt(gt) = &vehicle.driver else { continue };
+        let d = &gt.diagnostics;
+        let counts = [
+            ("plans", i64::from(d.plans)),
+            ("qp_iterations", i64::from(d.iterations)),
+            ("qp_iterations_total", i64::try_from(d.iterations_total).unwrap_or(i64::MAX)),
+            ("fallbacks", i64::from(d.fallbacks)),
+            ("inexact", i64::from(d.inexact)),
+        ];
+        for (count, value) in counts {
+            info.values.push((format!("gt.{}.{count}", vehicle.name), InfoValue::I64(value)));
+        }
     }
 }
 

@@ -447,3 +447,25 @@ fn standing_still_earns_nothing_however_cheap_it_is() {
     assert!(cost < 1.0, "J alone would pay it nearly the most: cost {cost}");
     assert!(last.reward < 0.01, "reward {}", last.reward);
 }
+
+#[test]
+fn diagnostics_on_request_count_each_game_theoretic_cars_plans_and_qp_iterations() {
+    let mut diagnosed = env("merge", CreateOptions { diagnostics: true, ..CreateOptions::default() });
+    let count = |step: &AgentStep, key: &str| match info(step, key) {
+        Some(InfoValue::I64(n)) => *n,
+        other => panic!("{key}: {other:?} in {:?}", step.info),
+    };
+    diagnosed.reset(Some(0), &[]).unwrap();
+    for k in 1..=5 {
+        let step = diagnosed.step(&[]).unwrap()[0].clone();
+        // merge has one gt car, AC; it plans once per control period, one per step here.
+        assert_eq!(count(&step, "gt.ac.plans"), k);
+        assert!(count(&step, "gt.ac.qp_iterations") > 0);
+        assert!(count(&step, "gt.ac.qp_iterations_total") >= k);
+        assert_eq!((count(&step, "gt.ac.fallbacks"), count(&step, "gt.ac.inexact")), (0, 0));
+    }
+    let mut plain = env("merge", CreateOptions::default());
+    plain.reset(Some(0), &[]).unwrap();
+    let step = plain.step(&[]).unwrap()[0].clone();
+    assert!(!step.info.values.iter().any(|(k, _)| k.starts_with("gt.")), "only on request");
+}

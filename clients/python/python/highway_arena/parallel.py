@@ -135,7 +135,10 @@ class ParallelEnv(_ParallelEnv):
     'continuous'), ``observation`` ('kinematics' or 'kinematics_with_mask'), ``expert``
     ('nash' or 'stackelberg': infos say what the built-in AV would do), ``policy`` (a
     built-in driver the server drives every learner with, as ``arena eval`` does:
-    'gt:<style>:<game>', 'expert' or 'idm'; then ``step({})`` takes no actions), ``seed`` (used by
+    'gt:<style>:<game>', 'expert' or 'idm'; then ``step({})`` takes no actions),
+    ``diagnostics`` (True: infos carry every game-theoretic car's solver counts,
+    ``gt.<car>.plans``, ``.qp_iterations``, ``.qp_iterations_total``, ``.fallbacks``,
+    ``.inexact``), ``seed`` (used by
     the first ``reset()`` that is given none, for reproducible runs), ``timeout`` (the
     seconds any one call may wait for the server, retries included; default 10),
     ``connect_timeout`` (the seconds to wait for a server to appear; default 1), and scenario
@@ -154,6 +157,7 @@ class ParallelEnv(_ParallelEnv):
         observation=None,
         expert=None,
         policy=None,
+        diagnostics=False,
         scenario_text=None,
         overrides=None,
         prefix=DEFAULT_PREFIX,
@@ -181,6 +185,7 @@ class ParallelEnv(_ParallelEnv):
                 render_size=render_size,
                 expert=expert,
                 policy=policy,
+                diagnostics=bool(diagnostics),
             )
             specs = self._env.specs()
         except BaseException:

@@ -45,11 +45,14 @@ pub enum ErrorCode {
     /// 15: a reset option the env does not know (the reset options are
     /// `overrides.<dotted scenario key>`).
     InvalidOption = 15,
+    /// The server is shutting down: it answers the requests it had begun and refuses new
+    /// ones; its envs end with it.
+    ShuttingDown = 16,
 }
 
 impl ErrorCode {
     /// Every code, in number order.
-    pub const ALL: [ErrorCode; 16] = [
+    pub const ALL: [ErrorCode; 17] = [
         ErrorCode::MalformedRequest,
         ErrorCode::WrongVersion,
         ErrorCode::PayloadTooLarge,
@@ -66,6 +69,7 @@ impl ErrorCode {
         ErrorCode::Internal,
         ErrorCode::AgentNotLive,
         ErrorCode::InvalidOption,
+        ErrorCode::ShuttingDown,
     ];
 
     /// The stable number of the code, as on the wire.
@@ -172,7 +176,8 @@ mod tests {
         assert_eq!(ErrorCode::TooManyEnvs.as_u16(), 11);
         assert_eq!(ErrorCode::AgentNotLive.as_u16(), 14);
         assert_eq!(ErrorCode::InvalidOption.as_u16(), 15);
-        assert!(decode::<ErrorCode>(&[16]).is_err(), "no code 16 yet");
+        assert_eq!(ErrorCode::ShuttingDown.as_u16(), 16);
+        assert!(decode::<ErrorCode>(&[17]).is_err(), "no code 17 yet");
     }
 
     #[test]

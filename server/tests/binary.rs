@@ -152,3 +152,89 @@ async fn the_echo_key_answers_at_most_its_cap_however_much_is_asked() {
     // A 4-byte request cannot ask for megabytes: 64 KiB at most.
     assert_eq!(sizes, [100, arena_server::transport::ECHO_MAX_REPLY]);
 }
+
+/// One request over `session` to `key`: its reply, or None when none came within 2 s.
+async fn ask(session: &zenoh::Session, key: &str, body: RequestBody) -> Option<ReplyBody> {
+    let request = encode(&Request { version: PROTOCOL_VERSION, client: ClientId(7), body });
+    let replies = session.get(key).payload(request).timeout(Duration::from_secs(2)).await.ok()?;
+    let reply = replies.recv_async().await.ok()?;
+    let bytes = reply.result().ok()?.payload().to_bytes().into_owned();
+    decode::<Reply>(&bytes).ok().map(|reply| reply.body)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_under_load_answers_every_request_then_exits_0() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let mut server = Command::new(env!("CARGO_BIN_EXE_arena-server"))
+        .args(["--listen", &endpoint])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start arena-server");
+    let mut lines = BufReader::new(server.stdout.take().expect("stdout")).lines();
+    let banner = lines.next().expect("a first line").expect("utf-8");
+    let server_id =
+        banner.split("server id ").nth(1).and_then(|rest| rest.split(')').next()).expect("an id").to_string();
+    let flags = ConnectionFlags::connecting_to(&endpoint);
+    let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
+    let key = keys::server_rpc("arena", &server_id).unwrap();
+    let mut ready = false;
+    for _ in 0..100 {
+        if ask(&session, &key, RequestBody::ServerInfo).await.is_some() {
+            ready = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert!(ready, "the server answered");
+
+    // Four loops, each stepping its own env as fast as replies come.
+    let mut loops = Vec::new();
+    for _ in 0..4 {
+        let (session, key) = (session.clone(), key.clone());
+        loops.push(tokio::spawn(async move {
+            let create = RequestBody::CreateEnv {
+                scenario: arena_protocol::ScenarioSource::Named("highway".into()),
+                options: Default::default(),
+            };
+            let Some(ReplyBody::Created { env, .. }) = ask(&session, &key, create).await else { panic!("created") };
+            let reset = RequestBody::Reset { env, seq: 0, seed: Some(1), options: vec![] };
+            assert!(matches!(ask(&session, &key, reset).await, Some(ReplyBody::Reset(_))));
+            let (mut steps, mut seq) = (0u64, 0u64);
+            loop {
+                seq += 1;
+                match ask(&session, &key, RequestBody::Step { env, seq, actions: vec![] }).await {
+                    Some(ReplyBody::Step(_)) => steps += 1,
+                    // An episode ran out (40 steps): start another.
+                    Some(ReplyBody::Error(e)) if e.code == arena_protocol::ErrorCode::AgentNotLive => {
+                        seq += 1;
+                        let reset = RequestBody::Reset { env, seq, seed: None, options: vec![] };
+                        match ask(&session, &key, reset).await {
+                            Some(ReplyBody::Reset(_)) => {}
+                            other => return (steps, other),
+                        }
+                    }
+                    other => return (steps, other),
+                }
+            }
+        }));
+    }
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let killed = Command::new("kill").args(["-TERM", &server.id().to_string()]).status().expect("kill");
+    assert!(killed.success());
+    let status = tokio::task::spawn_blocking(move || server.wait().expect("exit")).await.unwrap();
+    assert!(status.success(), "arena-server exited with {status}");
+    for handle in loops {
+        let (steps, last) = handle.await.expect("a loop");
+        // Every loop was stepping when SIGTERM came; its request in flight was answered and
+        // the next one told ShuttingDown, not left to time out.
+        assert!(steps > 0, "the loop stepped before the signal");
+        match last {
+            Some(ReplyBody::Error(e)) => {
+                assert_eq!(e.code, arena_protocol::ErrorCode::ShuttingDown, "{e}");
+                assert!(e.message.contains(&server_id), "{e}");
+            }
+            other => panic!("after {steps} steps: {other:?}"),
+        }
+    }
+    session.close().await.unwrap();
+}

@@ -1,17 +1,23 @@
 //! The Zenoh side of the server: one session, a liveliness token that lets clients find
 //! this server, one queryable that feeds every request to the `Registry`, a liveliness
 //! subscriber that closes the envs of clients that are gone, and a sweeper for idle envs.
+//! Closing drains: the requests being answered finish and are replied to; later ones are
+//! told `ShuttingDown` at once, so no client waits out its timeout on a server that left.
 
 mod registry;
 
-use std::sync::Arc;
+use std::sync::{Arc, RwLock};
 use std::time::{Duration, Instant};
 
-use arena_protocol::{ClientId, keys};
+use arena_protocol::{ClientId, ErrorCode, ErrorReply, PROTOCOL_VERSION, Reply, ReplyBody, encode, keys};
 use zenoh::Wait;
 use zenoh::sample::SampleKind;
 
 pub use registry::{Limits, Registry, Scenarios};
+
+/// How long a closing server keeps answering `ShuttingDown` after the requests in flight
+/// are answered, so requests already on their way get an answer, not a timeout.
+pub const SHUTDOWN_GRACE: Duration = Duration::from_millis(100);
 
 /// The largest echo reply (bytes): more than any single-env step reply `arena bench`
 /// compares it with (about 1 KB on highway.toml).
@@ -22,6 +28,9 @@ pub struct Server {
     session: zenoh::Session,
     server_id: String,
     registry: Arc<Registry>,
+    /// Whether requests are answered (false once closing). Every answer holds it for
+    /// reading, so taking it for writing waits for the answers in flight.
+    accepting: Arc<RwLock<bool>>,
     _queryable: zenoh::query::Queryable<()>,
     _echo: zenoh::query::Queryable<()>,
     _token: zenoh::liveliness::LivelinessToken,
@@ -43,14 +52,30 @@ impl Server {
 
         let rpc = keys::server_rpc(prefix, &server_id)?;
         let handler = Arc::clone(&registry);
+        let accepting = Arc::new(RwLock::new(true));
+        let gate = Arc::clone(&accepting);
+        let shutting_down = encode(&Reply {
+            version: PROTOCOL_VERSION,
+            body: ReplyBody::Error(ErrorReply {
+                code: ErrorCode::ShuttingDown,
+                message: format!("arena-server {server_id} is shutting down; its envs end with it"),
+                env_usable: false,
+            }),
+        });
         let queryable = session
             .declare_queryable(rpc)
             .callback(move |query| {
-                let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
-                let answer = handler.handle(&bytes);
+                let open = gate.read().unwrap_or_else(|poisoned| poisoned.into_inner());
+                let answer = if *open {
+                    let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+                    handler.handle(&bytes)
+                } else {
+                    shutting_down.clone()
+                };
                 if let Err(e) = query.reply(query.key_expr().clone(), answer).wait() {
                     eprintln!("arena-server: could not send a reply: {e}");
                 }
+                drop(open);
             })
             .await?;
 
@@ -106,6 +131,7 @@ impl Server {
             session,
             server_id,
             registry,
+            accepting,
             _queryable: queryable,
             _echo: echo,
             _token: token,
@@ -124,13 +150,21 @@ impl Server {
         &self.registry
     }
 
-    /// Undeclares everything and closes the session.
+    /// Stops being found, answers the requests in flight and refuses later ones with
+    /// `ShuttingDown`, then undeclares everything and closes the session.
     pub async fn close(self) -> zenoh::Result<()> {
         self.sweeper.abort();
-        let Server { session, _queryable, _echo, _token, _clients, .. } = self;
+        let Server { session, accepting, _queryable, _echo, _token, _clients, .. } = self;
+        _token.undeclare().await?;
+        // Waits for every answer being computed (they hold the lock for reading).
+        let drained = tokio::task::spawn_blocking(move || {
+            *accepting.write().unwrap_or_else(|poisoned| poisoned.into_inner()) = false;
+        });
+        drained.await.map_err(|e| format!("draining the requests in flight: {e}"))?;
+        // Requests already on their way are told ShuttingDown rather than met by silence.
+        tokio::time::sleep(SHUTDOWN_GRACE).await;
         _queryable.undeclare().await?;
         _echo.undeclare().await?;
-        _token.undeclare().await?;
         _clients.undeclare().await?;
         session.close().await
     }

@@ -51,6 +51,7 @@ _BY_CODE = {
     "InvalidEndpoint": InvalidEndpointError,
     "NoServer": ServerNotFoundError,
     "ServerGone": ServerGoneError,
+    "ShuttingDown": ServerGoneError,
     "Timeout": ArenaTimeoutError,
     "InvalidAction": InvalidActionError,
     "WrongActionType": InvalidActionError,

@@ -18,6 +18,10 @@ struct Args {
     /// Most envs alive at once; further creates are refused with TooManyEnvs.
     #[arg(long, default_value_t = 1024)]
     max_envs: usize,
+    /// Most envs one client may hold at once (a shared server stays shared); further
+    /// creates by that client are refused with TooManyEnvs.
+    #[arg(long, default_value_t = 256)]
+    max_envs_per_client: usize,
     /// Seconds an env may stay untouched before it is closed.
     #[arg(long, default_value_t = 600.0)]
     idle_timeout: f64,
@@ -33,6 +37,11 @@ fn main() -> anyhow::Result<()> {
     if !(args.idle_timeout.is_finite() && args.idle_timeout > 0.0) {
         anyhow::bail!("--idle-timeout must be a positive number of seconds, not {}", args.idle_timeout);
     }
+    if args.max_envs == 0 || args.max_envs_per_client == 0 {
+        anyhow::bail!(
+            "--max-envs and --max-envs-per-client must be at least 1 (a server that can hold no env serves nothing)"
+        );
+    }
     let runtime =
         tokio::runtime::Builder::new_multi_thread().enable_all().build().context("cannot start the tokio runtime")?;
     runtime.block_on(serve(args))
@@ -42,7 +51,11 @@ async fn serve(args: Args) -> anyhow::Result<()> {
     let scenarios = Scenarios::load(args.scenarios.as_deref()).map_err(anyhow::Error::msg)?;
     let config = args.connection.zenoh_config(Role::Server).map_err(anyhow::Error::msg)?;
     let session = zenoh::open(config).await.map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))?;
-    let limits = Limits { max_envs: args.max_envs, idle_timeout: Duration::from_secs_f64(args.idle_timeout) };
+    let limits = Limits {
+        max_envs: args.max_envs,
+        max_envs_per_client: args.max_envs_per_client,
+        idle_timeout: Duration::from_secs_f64(args.idle_timeout),
+    };
     let server = Server::start(session, &args.connection.prefix, scenarios.clone(), limits)
         .await
         .map_err(|e| anyhow::anyhow!("cannot declare the server: {e}"))?;

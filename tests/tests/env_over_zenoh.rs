@@ -325,3 +325,26 @@ async fn idle_envs_are_reclaimed_and_say_so() {
     }
     panic!("an idle env was never reclaimed");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn one_client_cannot_take_a_shared_server() {
+    let limits = arena_server::transport::Limits { max_envs: 10, max_envs_per_client: 2, ..Default::default() };
+    let harness = common::start_with(limits).await;
+    let (greedy, other) = (harness.client().await, harness.client().await);
+    let mut first = harness.env(&greedy, "merge").await;
+    let _second = harness.env(&greedy, "merge").await;
+    let merge = || ScenarioSource::Named("merge".into());
+    let server = harness.server.id();
+    match greedy.create_env(server, merge(), CreateOptions::default()).await {
+        Err(ClientError::Server(e)) => {
+            assert_eq!(e.code, ErrorCode::TooManyEnvs);
+            assert!(e.message.contains("this client holds its limit of 2"), "{}", e.message);
+        }
+        other => panic!("{other:?}"),
+    }
+    // The server has room, and the other client gets it; closing one frees the greedy's share.
+    assert!(other.create_env(server, merge(), CreateOptions::default()).await.is_ok());
+    first.close().await.unwrap();
+    assert!(greedy.create_env(server, merge(), CreateOptions::default()).await.is_ok(), "a closed env frees its place");
+    assert_eq!(harness.server.registry().len(), 3);
+}

@@ -21,13 +21,15 @@ use arena_sim::scenario::{BUILTIN, Scenario};
 pub struct Limits {
     /// Most envs alive at once.
     pub max_envs: usize,
+    /// Most envs one client may hold at once, so one client cannot take a shared server.
+    pub max_envs_per_client: usize,
     /// An env nobody touched for this long is closed.
     pub idle_timeout: Duration,
 }
 
 impl Default for Limits {
     fn default() -> Self {
-        Limits { max_envs: 1024, idle_timeout: Duration::from_secs(600) }
+        Limits { max_envs: 1024, max_envs_per_client: 256, idle_timeout: Duration::from_secs(600) }
     }
 }
 
@@ -98,6 +100,9 @@ pub struct Registry {
     scenarios: Scenarios,
     limits: Limits,
     envs: Mutex<HashMap<EnvId, Arc<Mutex<Slot>>>>,
+    /// How many envs each client holds (kept with `envs`, under its lock, so a create
+    /// checks the client's limit without visiting every env).
+    held: Mutex<HashMap<ClientId, usize>>,
     closed: Mutex<Tombstones>,
 }
 
@@ -162,6 +167,7 @@ impl Registry {
             scenarios,
             limits,
             envs: Mutex::new(HashMap::new()),
+            held: Mutex::new(HashMap::new()),
             closed: Mutex::new(Tombstones::default()),
         }
     }
@@ -242,9 +248,7 @@ impl Registry {
         options: &CreateOptions,
     ) -> Result<ReplyBody, ErrorReply> {
         // Refused before any work: a full server parses and builds nothing.
-        if lock(&self.envs).len() >= self.limits.max_envs {
-            return Err(self.too_many_envs());
-        }
+        self.has_room(lock(&self.envs).len(), owner)?;
         let overrides: Vec<(String, toml::Value)> =
             options.overrides.iter().map(|(k, v)| (k.clone(), to_toml(v))).collect();
         let (file, text) = match &source {
@@ -265,18 +269,40 @@ impl Registry {
         let specs = env.specs();
         let mut envs = lock(&self.envs);
         // Again under the lock: another create may have taken the last place meanwhile.
-        if envs.len() >= self.limits.max_envs {
-            return Err(self.too_many_envs());
-        }
+        self.has_room(envs.len(), owner)?;
         let slot = Slot { env, owner, last: None, last_used: Instant::now() };
         envs.insert(id, Arc::new(Mutex::new(slot)));
+        *lock(&self.held).entry(owner).or_default() += 1;
         Ok(ReplyBody::Created { env: id, specs })
     }
 
-    fn too_many_envs(&self) -> ErrorReply {
-        let message =
-            format!("this server holds its limit of {} envs; close one or use another server", self.limits.max_envs);
-        error(ErrorCode::TooManyEnvs, message, true)
+    /// Whether one more env fits the server (holding `open`) and the client's share.
+    fn has_room(&self, open: usize, client: ClientId) -> Result<(), ErrorReply> {
+        let limits = &self.limits;
+        if open >= limits.max_envs {
+            let message =
+                format!("this server holds its limit of {} envs; close one or use another server", limits.max_envs);
+            return Err(error(ErrorCode::TooManyEnvs, message, true));
+        }
+        if lock(&self.held).get(&client).copied().unwrap_or(0) >= limits.max_envs_per_client {
+            let message = format!(
+                "this client holds its limit of {} envs on this server (--max-envs-per-client); close one first",
+                limits.max_envs_per_client
+            );
+            return Err(error(ErrorCode::TooManyEnvs, message, true));
+        }
+        Ok(())
+    }
+
+    /// Counts `owner`'s env as gone (called under the `envs` lock).
+    fn release(&self, owner: ClientId) {
+        let mut held = lock(&self.held);
+        if let Some(count) = held.get_mut(&owner) {
+            *count -= 1;
+            if *count == 0 {
+                held.remove(&owner);
+            }
+        }
     }
 
     fn slot(&self, client: ClientId, env: EnvId) -> Result<Arc<Mutex<Slot>>, ErrorReply> {
@@ -376,7 +402,11 @@ impl Registry {
 
     fn close(&self, client: ClientId, env: EnvId) -> Result<ReplyBody, ErrorReply> {
         self.slot(client, env)?;
-        lock(&self.envs).remove(&env);
+        let mut envs = lock(&self.envs);
+        if envs.remove(&env).is_some() {
+            self.release(client);
+        }
+        drop(envs);
         lock(&self.closed).insert(env, client);
         Ok(ReplyBody::Closed)
     }
@@ -401,6 +431,7 @@ impl Registry {
             let kept = keep(&slot);
             if !kept {
                 closed.insert(*id, slot.owner);
+                self.release(slot.owner);
             }
             kept
         });

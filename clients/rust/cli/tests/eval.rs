@@ -31,10 +31,26 @@ fn serve() -> Harness {
     Harness { _runtime: runtime, _server: server, endpoint }
 }
 
-fn out_dir(name: &str) -> PathBuf {
+/// A fresh folder for one run's output, removed when the test ends (passed or not).
+struct OutDir(PathBuf);
+
+impl std::ops::Deref for OutDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for OutDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn out_dir(name: &str) -> OutDir {
     let dir = std::env::temp_dir().join(format!("arena-eval-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    dir
+    OutDir(dir)
 }
 
 fn eval(harness: &Harness, out: &Path, args: &[&str]) -> Output {

@@ -392,6 +392,15 @@ pub struct ServerInfo {
     pub envs: u32,
     /// Most envs it holds.
     pub max_envs: u32,
+    /// Most envs one client may hold.
+    pub max_envs_per_client: u32,
+    /// Env steps it has taken since it started (batched ones included): its load, with
+    /// `cores`, for clients that place envs.
+    pub steps: u64,
+    /// CPU cores it may use.
+    pub cores: u32,
+    /// Its resident memory (bytes; 0 where the system does not say), for soak runs.
+    pub rss_bytes: u64,
 }
 
 /// Agents, spaces and timing of an env.
@@ -669,6 +678,10 @@ mod tests {
                 scenarios: vec!["merge".into(), "overtake".into()],
                 envs: 2,
                 max_envs: 9,
+                max_envs_per_client: 3,
+                steps: 1 << 40,
+                cores: 2,
+                rss_bytes: 12 << 20,
             }),
             ReplyBody::Created { env: EnvId(5), specs: specs() },
             ReplyBody::Reset(ResetReply {

@@ -4,6 +4,7 @@
 //! reclaiming — so each can be tested without a network and the queryable stays thin.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -104,6 +105,8 @@ pub struct Registry {
     /// checks the client's limit without visiting every env).
     held: Mutex<HashMap<ClientId, usize>>,
     closed: Mutex<Tombstones>,
+    /// Env steps taken, for `ServerInfo::steps`.
+    steps: AtomicU64,
 }
 
 /// Ids of recently closed envs, so a late request gets `EnvClosed` rather than
@@ -169,6 +172,7 @@ impl Registry {
             envs: Mutex::new(HashMap::new()),
             held: Mutex::new(HashMap::new()),
             closed: Mutex::new(Tombstones::default()),
+            steps: AtomicU64::new(0),
         }
     }
 
@@ -217,9 +221,8 @@ impl Registry {
                 }
                 Ok(ReplyBody::Reset(ResetReply { seq, observations, infos }))
             }),
-            RequestBody::Step { env, seq, actions } => {
-                self.sequenced(client, env, seq, |slot| step_reply(&mut slot.env, seq, &actions).map(ReplyBody::Step))
-            }
+            RequestBody::Step { env, seq, actions } => self
+                .sequenced(client, env, seq, |slot| self.step_reply(&mut slot.env, seq, &actions).map(ReplyBody::Step)),
             RequestBody::StepBatch { steps } => Ok(ReplyBody::StepBatch(self.step_batch(client, &steps))),
             RequestBody::Render { env, mode } => {
                 self.with_env(client, env, |slot| slot.env.render(mode).map(ReplyBody::Render))
@@ -230,6 +233,18 @@ impl Registry {
         }
     }
 
+    /// One env step, counted in `ServerInfo::steps` when it is taken.
+    fn step_reply(
+        &self,
+        env: &mut Env,
+        seq: u64,
+        actions: &[(String, arena_protocol::Action)],
+    ) -> Result<StepReply, ErrorReply> {
+        let reply = step_reply(env, seq, actions)?;
+        self.steps.fetch_add(1, Ordering::Relaxed);
+        Ok(reply)
+    }
+
     fn info(&self) -> ServerInfo {
         ServerInfo {
             server_id: self.server_id.clone(),
@@ -238,6 +253,10 @@ impl Registry {
             scenarios: self.scenarios.names(),
             envs: self.len() as u32,
             max_envs: self.limits.max_envs as u32,
+            max_envs_per_client: self.limits.max_envs_per_client as u32,
+            steps: self.steps.load(Ordering::Relaxed),
+            cores: std::thread::available_parallelism().map_or(1, |n| n.get() as u32),
+            rss_bytes: resident_bytes(),
         }
     }
 
@@ -366,7 +385,7 @@ impl Registry {
     fn step_batch(&self, client: ClientId, steps: &[BatchStep]) -> Vec<BatchItem> {
         let one = |step: &BatchStep| -> BatchItem {
             let body = self.sequenced(client, step.env, step.seq, |slot| {
-                step_reply(&mut slot.env, step.seq, &step.actions).map(ReplyBody::Step)
+                self.step_reply(&mut slot.env, step.seq, &step.actions).map(ReplyBody::Step)
             });
             match body {
                 Ok(ReplyBody::Step(step)) => BatchItem::Ok(step),
@@ -437,6 +456,13 @@ impl Registry {
         });
         before - envs.len()
     }
+}
+
+/// This process's resident memory (Linux: /proc/self/statm's second field, in pages of
+/// 4 KiB); 0 elsewhere.
+fn resident_bytes() -> u64 {
+    let statm = std::fs::read_to_string("/proc/self/statm").unwrap_or_default();
+    statm.split_whitespace().nth(1).and_then(|pages| pages.parse::<u64>().ok()).map_or(0, |pages| pages * 4096)
 }
 
 fn wrong_version(version: u16) -> ErrorReply {

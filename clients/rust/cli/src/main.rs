@@ -6,8 +6,9 @@ mod bench;
 mod eval;
 mod play;
 mod record;
+mod soak;
 
-/// Command-line client of highway-arena. `bench`, `eval` and `play` talk to a running
+/// Command-line client of highway-arena. `bench`, `eval`, `play` and `soak` talk to a running
 /// `arena-server` (start one with `arena-server`); `paper` runs in process.
 #[derive(Debug, Parser)]
 #[command(name = "arena", version, about)]
@@ -28,6 +29,9 @@ enum Command {
     /// Record the built-in AV driving in a learner's place as a Minari dataset (runs
     /// `python -m highway_arena.record`; `arena record -- --help` for its options).
     Record(record::RecordArgs),
+    /// Many clients stepping their own envs for a while: errors, step latency and the
+    /// server's memory before, during and after.
+    Soak(soak::SoakArgs),
     /// Step an env with a built-in policy and watch it as text in the terminal.
     Play(play::PlayArgs),
     /// Reproduce the paper's Scenario A and B tables and plots, in process.
@@ -60,6 +64,7 @@ fn main() -> anyhow::Result<()> {
         Command::Eval(args) => eval::run(args),
         Command::Play(args) => play::run(args),
         Command::Record(args) => record::run(args),
+        Command::Soak(args) => soak::run(args),
         Command::Paper(args) => arena_paper::report::run(args),
     }
 }

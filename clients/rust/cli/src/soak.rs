@@ -1,0 +1,214 @@
+//! `arena soak`: many clients, each on its own Zenoh session, stepping their own envs
+//! for a while: errors, step latency (p50, p99) and the server's memory before, during
+//! and after, so a server a lab leaves running can be checked for leaks and stalls.
+
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use arena_client::{Client, CreateOptions, ScenarioSource};
+use arena_protocol::ServerInfo;
+use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, Role};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+/// Arguments of `arena soak`.
+#[derive(Debug, clap::Args)]
+pub struct SoakArgs {
+    #[command(flatten)]
+    connection: ConnectionFlags,
+    /// Clients, each with its own Zenoh session and env.
+    #[arg(long, default_value_t = 64)]
+    clients: usize,
+    /// Seconds of stepping.
+    #[arg(long, default_value_t = 60.0)]
+    seconds: f64,
+    /// Scenario each client steps (an episode that ends is reset).
+    #[arg(long, default_value = "merge-random")]
+    scenario: String,
+    /// Print the figures as one JSON object instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// What one client saw.
+#[derive(Debug, Default)]
+struct ClientRun {
+    latencies: Vec<Duration>,
+    errors: Vec<String>,
+}
+
+#[derive(Debug, Serialize)]
+struct Figures {
+    clients: usize,
+    seconds: f64,
+    steps: usize,
+    errors: usize,
+    first_errors: Vec<String>,
+    steps_per_s: f64,
+    step_p50_us: f64,
+    step_p99_us: f64,
+    rss_before_mib: f64,
+    rss_peak_mib: f64,
+    rss_after_mib: f64,
+    envs_after: u32,
+}
+
+/// Runs `arena soak`.
+pub fn run(args: SoakArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(args.clients >= 1, "--clients must be at least 1");
+    anyhow::ensure!(args.seconds.is_finite() && args.seconds > 0.0, "--seconds must be a positive number");
+    let runtime = tokio::runtime::Runtime::new().context("cannot start the tokio runtime")?;
+    let figures = runtime.block_on(soak(&args))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&figures)?);
+    } else {
+        print_table(&figures);
+    }
+    anyhow::ensure!(
+        figures.errors == 0,
+        "{} of {} steps failed: {:?}",
+        figures.errors,
+        figures.steps,
+        figures.first_errors
+    );
+    Ok(())
+}
+
+async fn soak(args: &SoakArgs) -> anyhow::Result<Figures> {
+    let watcher = Client::connect(&args.connection).await.context("opening the Zenoh session")?;
+    let server =
+        watcher.pick_server_within(Duration::from_secs_f64(DEFAULT_CONNECT_TIMEOUT)).await.with_context(|| {
+            format!("no arena-server answered at {}", args.connection.endpoints(Role::Client).join(", "))
+        })?;
+    let before = watcher.server_info(&server).await?;
+    let deadline = Instant::now() + Duration::from_secs_f64(args.seconds);
+    let mut tasks = Vec::with_capacity(args.clients);
+    for k in 0..args.clients {
+        let (flags, server, scenario) = (args.connection.clone(), server.clone(), args.scenario.clone());
+        tasks.push(tokio::spawn(async move { step_until(flags, server, scenario, k as u64, deadline).await }));
+    }
+    let bar = ProgressBar::new(args.seconds.ceil() as u64).with_style(
+        ProgressStyle::with_template("soak [{bar:30}] {pos}/{len} s, server RSS {msg}")
+            .map_err(|e| anyhow::anyhow!("progress bar template: {e}"))?
+            .progress_chars("=> "),
+    );
+    let mut peak = before.rss_bytes;
+    while Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_secs(1).min(deadline.saturating_duration_since(Instant::now()))).await;
+        if let Ok(info) = watcher.server_info(&server).await {
+            peak = peak.max(info.rss_bytes);
+            bar.set_message(format!("{:.1} MiB, {} envs", mib(info.rss_bytes), info.envs));
+        }
+        bar.inc(1);
+    }
+    let mut runs = Vec::with_capacity(tasks.len());
+    for task in tasks {
+        runs.push(task.await.context("a client task")?);
+    }
+    bar.finish_and_clear();
+    // The server closes the envs of clients that closed; give it a moment to free them.
+    tokio::time::sleep(Duration::from_secs(1)).await;
+    let after = watcher.server_info(&server).await?;
+    watcher.close().await?;
+    Ok(figures(args, &runs, &before, peak, &after))
+}
+
+/// One client: its own session and env, stepping until `deadline`.
+async fn step_until(
+    flags: ConnectionFlags,
+    server: String,
+    scenario: String,
+    seed: u64,
+    deadline: Instant,
+) -> ClientRun {
+    let mut run = ClientRun::default();
+    let client = match Client::connect(&flags).await {
+        Ok(client) => client,
+        Err(e) => {
+            run.errors.push(format!("connect: {e}"));
+            return run;
+        }
+    };
+    match client.create_env(&server, ScenarioSource::Named(scenario), CreateOptions::default()).await {
+        Ok(mut env) => {
+            let mut live = false;
+            while Instant::now() < deadline {
+                if !live {
+                    match env.reset(Some(seed), vec![]).await {
+                        Ok(_) => live = true,
+                        Err(e) => run.errors.push(format!("reset: {e}")),
+                    }
+                    continue;
+                }
+                let started = Instant::now();
+                match env.step(vec![]).await {
+                    Ok(reply) => {
+                        run.latencies.push(started.elapsed());
+                        live = !reply.agents.is_empty();
+                    }
+                    Err(e) => run.errors.push(format!("step: {e}")),
+                }
+            }
+            if let Err(e) = env.close().await {
+                run.errors.push(format!("close: {e}"));
+            }
+        }
+        Err(e) => run.errors.push(format!("create: {e}")),
+    }
+    if let Err(e) = client.close().await {
+        run.errors.push(format!("client close: {e}"));
+    }
+    run
+}
+
+fn mib(bytes: u64) -> f64 {
+    bytes as f64 / (1024.0 * 1024.0)
+}
+
+fn figures(args: &SoakArgs, runs: &[ClientRun], before: &ServerInfo, peak: u64, after: &ServerInfo) -> Figures {
+    let mut latencies: Vec<Duration> = runs.iter().flat_map(|r| r.latencies.iter().copied()).collect();
+    latencies.sort();
+    let percentile = |p: f64| {
+        let index = ((latencies.len() as f64 - 1.0) * p).round() as usize;
+        latencies.get(index).map_or(f64::NAN, |d| d.as_secs_f64() * 1e6)
+    };
+    let errors: Vec<&String> = runs.iter().flat_map(|r| &r.errors).collect();
+    Figures {
+        clients: args.clients,
+        seconds: args.seconds,
+        steps: latencies.len(),
+        errors: errors.len(),
+        first_errors: errors.iter().take(5).map(|e| e.to_string()).collect(),
+        steps_per_s: latencies.len() as f64 / args.seconds,
+        step_p50_us: percentile(0.5),
+        step_p99_us: percentile(0.99),
+        rss_before_mib: mib(before.rss_bytes),
+        rss_peak_mib: mib(peak),
+        rss_after_mib: mib(after.rss_bytes),
+        envs_after: after.envs,
+    }
+}
+
+fn print_table(f: &Figures) {
+    println!(
+        "| clients | seconds | steps | errors | steps/s | step p50 | step p99 | RSS before | peak | after | envs after |"
+    );
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "| {} | {:.0} | {} | {} | {:.0} | {:.0} µs | {:.0} µs | {:.1} MiB | {:.1} MiB | {:.1} MiB | {} |",
+        f.clients,
+        f.seconds,
+        f.steps,
+        f.errors,
+        f.steps_per_s,
+        f.step_p50_us,
+        f.step_p99_us,
+        f.rss_before_mib,
+        f.rss_peak_mib,
+        f.rss_after_mib,
+        f.envs_after
+    );
+    for error in &f.first_errors {
+        println!("error: {error}");
+    }
+}

@@ -29,6 +29,10 @@ pub struct BenchArgs {
     /// Batch sizes to measure.
     #[arg(long, value_delimiter = ',', default_value = "1,16,64")]
     batches: Vec<usize>,
+    /// Numbers of open highway.toml envs (reset, 50 vehicles each) at which to read the
+    /// server's resident memory; empty to skip.
+    #[arg(long, value_delimiter = ',', default_value = "1,100,1000")]
+    memory_envs: Vec<usize>,
     /// Print the figures as one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -42,6 +46,13 @@ struct BatchFigures {
 }
 
 #[derive(Debug, Serialize)]
+struct MemoryFigures {
+    envs: usize,
+    rss_mib: f64,
+    kib_per_env: f64,
+}
+
+#[derive(Debug, Serialize)]
 struct Figures {
     server: String,
     step_request_bytes: usize,
@@ -52,6 +63,7 @@ struct Figures {
     step_p99_us: f64,
     ratio_p50: f64,
     batch: Vec<BatchFigures>,
+    memory: Vec<MemoryFigures>,
 }
 
 fn percentile(sorted: &[Duration], p: f64) -> f64 {
@@ -111,6 +123,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         batch.push(measure_batch(&client, &server, size, args.batch_seconds)?);
     }
 
+    let memory = measure_memory(&client, &server, &args.memory_envs, args.json)?;
     let figures = Figures {
         server,
         step_request_bytes: request_bytes,
@@ -121,6 +134,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         step_p99_us: percentile(&steps, 0.99),
         ratio_p50: percentile(&steps, 0.5) / percentile(&raws, 0.5),
         batch,
+        memory,
     };
     client.close()?;
     if args.json {
@@ -136,8 +150,36 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
                 b.envs, b.env_steps_per_s, b.sim_seconds_per_s
             );
         }
+        for m in &figures.memory {
+            println!("{:5} envs open: server RSS {:8.1} MiB, {:7.1} KiB per env", m.envs, m.rss_mib, m.kib_per_env);
+        }
     }
     Ok(())
+}
+
+/// The server's resident memory with each number of reset highway.toml envs open, and
+/// the growth per env over its memory before any was opened.
+fn measure_memory(client: &Client, server: &str, counts: &[usize], json: bool) -> anyhow::Result<Vec<MemoryFigures>> {
+    let rss = || -> anyhow::Result<u64> { Ok(client.server_info(server)?.rss_bytes) };
+    let baseline = rss()?;
+    let mut envs: Vec<Env> = Vec::new();
+    let mut figures = Vec::with_capacity(counts.len());
+    for &count in counts {
+        progress(json, &format!("opening highway.toml envs up to {count}"));
+        while envs.len() < count {
+            let mut env =
+                client.create_env(server, ScenarioSource::Named("highway".into()), CreateOptions::default())?;
+            env.reset(Some(envs.len() as u64), vec![])?;
+            envs.push(env);
+        }
+        let now = rss()?;
+        let per_env = now.saturating_sub(baseline) as f64 / count.max(1) as f64 / 1024.0;
+        figures.push(MemoryFigures { envs: count, rss_mib: now as f64 / (1024.0 * 1024.0), kib_per_env: per_env });
+    }
+    for env in &mut envs {
+        env.close()?;
+    }
+    Ok(figures)
 }
 
 fn measure_batch(client: &Client, server: &str, size: usize, seconds: f64) -> anyhow::Result<BatchFigures> {

@@ -30,8 +30,9 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', default_value = "1,16,64")]
     batches: Vec<usize>,
     /// Numbers of open highway.toml envs (reset, 50 vehicles each) at which to read the
-    /// server's resident memory; empty to skip.
-    #[arg(long, value_delimiter = ',', default_value = "1,100,1000")]
+    /// server's resident memory. Past 256 the server needs a higher
+    /// `--max-envs-per-client`.
+    #[arg(long, value_delimiter = ',', default_value = "1,100")]
     memory_envs: Vec<usize>,
     /// Print the figures as one JSON object instead of a table.
     #[arg(long)]

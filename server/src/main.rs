@@ -32,6 +32,15 @@ struct Args {
     scenarios: Option<PathBuf>,
 }
 
+/// Prints a line to stdout, ignoring a stdout that has gone (a closed pipe must not
+/// stop a server).
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     if !(args.idle_timeout.is_finite() && args.idle_timeout > 0.0) {
@@ -60,17 +69,17 @@ async fn serve(args: Args) -> anyhow::Result<()> {
         .await
         .map_err(|e| anyhow::anyhow!("cannot declare the server: {e}"))?;
     let endpoints = args.connection.endpoints(Role::Server).join(", ");
-    println!("arena-server {} (server id {}) serving on {endpoints}", env!("CARGO_PKG_VERSION"), server.id());
-    println!("scenarios: {}", scenarios.names().join(", "));
-    println!("connect from another terminal:");
+    say!("arena-server {} (server id {}) serving on {endpoints}", env!("CARGO_PKG_VERSION"), server.id());
+    say!("scenarios: {}", scenarios.names().join(", "));
+    say!("connect from another terminal:");
     let endpoint = args.connection.endpoints(Role::Server).first().cloned().unwrap_or_default();
-    println!("  arena play --scenario merge --connect {endpoint}");
-    println!(
+    say!("  arena play --scenario merge --connect {endpoint}");
+    say!(
         "  python -c \"import highway_arena; env = highway_arena.parallel_env('merge', connect='{endpoint}'); print(env.reset(seed=0))\""
     );
-    println!("stop with Ctrl-C");
+    say!("stop with Ctrl-C");
     shutdown_signal().await;
-    println!("arena-server: shutting down ({} env(s) open)", server.registry().len());
+    say!("arena-server: shutting down ({} env(s) open)", server.registry().len());
     server.close().await.map_err(|e| anyhow::anyhow!("closing the session failed: {e}"))?;
     Ok(())
 }

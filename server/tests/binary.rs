@@ -12,11 +12,20 @@ fn free_port() -> u16 {
     std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map(|a| a.port()).expect("a free port")
 }
 
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn serves_then_stops_on_sigterm() {
+/// An `arena-server` process listening on a free loopback port, its stdout after the
+/// banner line, and the server id the banner names.
+struct Running {
+    server: std::process::Child,
+    lines: std::io::Lines<BufReader<std::process::ChildStdout>>,
+    endpoint: String,
+    server_id: String,
+}
+
+fn run_server(extra: &[&str]) -> Running {
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
     let mut server = Command::new(env!("CARGO_BIN_EXE_arena-server"))
-        .args(["--listen", &endpoint, "--max-envs", "4"])
+        .args(["--listen", &endpoint])
+        .args(extra)
         .stdout(Stdio::piped())
         .spawn()
         .expect("start arena-server");
@@ -25,6 +34,12 @@ async fn serves_then_stops_on_sigterm() {
     assert!(banner.contains(&format!("serving on {endpoint}")), "{banner}");
     let server_id =
         banner.split("server id ").nth(1).and_then(|rest| rest.split(')').next()).expect("an id").to_string();
+    Running { server, lines, endpoint, server_id }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn serves_then_stops_on_sigterm() {
+    let Running { mut server, lines, endpoint, server_id } = run_server(&["--max-envs", "4"]);
 
     let flags = ConnectionFlags::connecting_to(&endpoint);
     let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
@@ -121,16 +136,8 @@ async fn a_scenario_file_is_served_under_the_name_it_declares() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_echo_key_answers_at_most_its_cap_however_much_is_asked() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let mut server = Command::new(env!("CARGO_BIN_EXE_arena-server"))
-        .args(["--listen", &endpoint])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start arena-server");
-    let mut lines = BufReader::new(server.stdout.take().expect("stdout")).lines();
-    let banner = lines.next().expect("a first line").expect("utf-8");
-    let server_id =
-        banner.split("server id ").nth(1).and_then(|rest| rest.split(')').next()).expect("an id").to_string();
+    // `_lines` keeps the server's stdout open while it runs.
+    let Running { mut server, lines: _lines, endpoint, server_id } = run_server(&[]);
     let flags = ConnectionFlags::connecting_to(&endpoint);
     let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
     let key = keys::server_echo("arena", &server_id).unwrap();
@@ -164,16 +171,8 @@ async fn ask(session: &zenoh::Session, key: &str, body: RequestBody) -> Option<R
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sigterm_under_load_answers_every_request_then_exits_0() {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let mut server = Command::new(env!("CARGO_BIN_EXE_arena-server"))
-        .args(["--listen", &endpoint])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start arena-server");
-    let mut lines = BufReader::new(server.stdout.take().expect("stdout")).lines();
-    let banner = lines.next().expect("a first line").expect("utf-8");
-    let server_id =
-        banner.split("server id ").nth(1).and_then(|rest| rest.split(')').next()).expect("an id").to_string();
+    // `_lines` keeps the server's stdout open while it runs.
+    let Running { mut server, lines: _lines, endpoint, server_id } = run_server(&[]);
     let flags = ConnectionFlags::connecting_to(&endpoint);
     let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
     let key = keys::server_rpc("arena", &server_id).unwrap();
@@ -237,4 +236,16 @@ async fn sigterm_under_load_answers_every_request_then_exits_0() {
         }
     }
     session.close().await.unwrap();
+}
+
+#[test]
+fn a_closed_stdout_does_not_stop_the_server() {
+    // Piped into `head`, say: the server's stdout goes away while it serves.
+    let Running { mut server, lines, .. } = run_server(&[]);
+    drop(lines);
+    std::thread::sleep(Duration::from_millis(200));
+    let killed = Command::new("kill").args(["-TERM", &server.id().to_string()]).status().expect("kill");
+    assert!(killed.success());
+    let status = server.wait().expect("exit");
+    assert!(status.success(), "its last line had nowhere to go, and it exited with {status}");
 }

@@ -5,31 +5,13 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+
+use common::{Harness, serve};
+
 use arena_paper::{PaperOptions, PaperScenario};
-use arena_protocol::session::{ConnectionFlags, Role};
-use arena_server::transport::{Limits, Scenarios, Server};
 use arena_sim::dynamics::Style;
 use arena_sim::gt::Game;
-
-/// A server on a free 127.0.0.1 port, kept alive with its runtime while the test runs.
-struct Harness {
-    _runtime: tokio::runtime::Runtime,
-    _server: Server,
-    endpoint: String,
-}
-
-fn serve() -> Harness {
-    let port = std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a free port").port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let runtime = tokio::runtime::Runtime::new().expect("runtime");
-    let flags = ConnectionFlags { listen: vec![endpoint.clone()], ..ConnectionFlags::default() };
-    let server = runtime.block_on(async {
-        let session = zenoh::open(flags.zenoh_config(Role::Server).expect("config")).await.expect("open session");
-        let scenarios = Scenarios::load(None).expect("the built-in scenarios load");
-        Server::start(session, "arena", scenarios, Limits::default()).await.expect("start server")
-    });
-    Harness { _runtime: runtime, _server: server, endpoint }
-}
 
 /// A fresh folder for one run's output, removed when the test ends (passed or not).
 struct OutDir(PathBuf);

@@ -4,20 +4,11 @@
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use arena_protocol::session::{ConnectionFlags, Role};
-use arena_server::transport::{Limits, Scenarios, Server};
+mod common;
 
 #[test]
 fn a_client_process_killed_mid_episode_has_its_env_closed() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).expect("a free port").port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
-    let runtime = tokio::runtime::Runtime::new().expect("runtime");
-    let flags = ConnectionFlags { listen: vec![endpoint.clone()], ..ConnectionFlags::default() };
-    let server = runtime.block_on(async {
-        let session = zenoh::open(flags.zenoh_config(Role::Server).expect("config")).await.expect("open session");
-        let scenarios = Scenarios::load(None).expect("the built-in scenarios load");
-        Server::start(session, "arena", scenarios, Limits::default()).await.expect("start server")
-    });
+    let common::Harness { runtime, server, endpoint } = common::serve();
     // `arena play` in real time: a 40 s highway episode, far longer than this test.
     let mut player = Command::new(env!("CARGO_BIN_EXE_arena"))
         .args(["play", "--connect", &endpoint, "--scenario", "highway", "--policy", "idle", "--speed", "1"])

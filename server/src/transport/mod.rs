@@ -58,7 +58,10 @@ impl Server {
             version: PROTOCOL_VERSION,
             body: ReplyBody::Error(ErrorReply {
                 code: ErrorCode::ShuttingDown,
-                message: format!("arena-server {server_id} is shutting down; its envs end with it"),
+                message: format!(
+                    "arena-server {server_id} is shutting down; its envs end with it: create new ones on another \
+                     server, or on this one once it is started again"
+                ),
                 env_usable: false,
             }),
         });

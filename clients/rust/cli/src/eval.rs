@@ -18,6 +18,9 @@ use rand_chacha::ChaCha8Rng;
 
 mod plots;
 
+/// The most envs one run steps together: a server's default `--max-envs-per-client`.
+const MAX_BATCH: u64 = 256;
+
 /// Arguments of `arena eval`.
 #[derive(Debug, clap::Args)]
 pub struct EvalArgs {
@@ -40,7 +43,8 @@ pub struct EvalArgs {
     /// Episode length in steps, instead of each scenario's.
     #[arg(long)]
     max_cycles: Option<u32>,
-    /// Envs stepped together in one round trip.
+    /// Envs stepped together in one round trip (1..=256, a server's default per-client
+    /// env limit).
     #[arg(long, default_value_t = 16)]
     batch: u64,
     /// Folder for results.md, results.csv, episodes.csv, results.json and the plots
@@ -74,7 +78,11 @@ impl std::str::FromStr for Policy {
 /// Runs `arena eval`.
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.episodes >= 1, "--episodes must be at least 1");
-    anyhow::ensure!(args.batch >= 1, "--batch must be at least 1");
+    anyhow::ensure!(
+        (1..=MAX_BATCH).contains(&args.batch),
+        "--batch must be within 1..={MAX_BATCH} (a server lets one client hold {MAX_BATCH} envs by default), not {}",
+        args.batch
+    );
     let policies = args
         .policies
         .iter()
@@ -86,7 +94,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         }
     }
     let (client, server) = crate::connect(&args.connection)?;
-    let total = args.episodes * (policies.len() * args.scenarios.len()) as u64;
+    let total = args.episodes.saturating_mul((policies.len() * args.scenarios.len()) as u64);
     let bar = ProgressBar::new(total).with_style(
         ProgressStyle::with_template("{msg:32} [{bar:30}] {pos}/{len} episodes, {elapsed} (eta {eta})")
             .map_err(|e| anyhow::anyhow!("progress bar template: {e}"))?
@@ -148,11 +156,11 @@ impl Run<'_> {
             envs.push(env);
         }
         let mut done = Vec::new();
-        let seeds: Vec<u64> = (0..self.args.episodes).map(|i| self.args.seed.wrapping_add(i)).collect();
-        for chunk in seeds.chunks(count as usize) {
-            let mut slots = Vec::with_capacity(chunk.len());
-            for (env, &seed) in envs.drain(..chunk.len()).zip(chunk) {
-                slots.push(self.reset(env, seed)?);
+        for first in (0..self.args.episodes).step_by(count as usize) {
+            let size = count.min(self.args.episodes - first) as usize;
+            let mut slots = Vec::with_capacity(size);
+            for (k, env) in envs.drain(..size).enumerate() {
+                slots.push(self.reset(env, self.args.seed.wrapping_add(first + k as u64))?);
             }
             done.extend(self.play(&mut slots, bar)?);
             envs.extend(slots.into_iter().map(|slot| slot.env));

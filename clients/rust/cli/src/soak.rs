@@ -11,6 +11,9 @@ use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, Role};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
+/// The most clients one soak opens: each is a Zenoh session with its own sockets.
+const MAX_CLIENTS: usize = 1024;
+
 /// Arguments of `arena soak`.
 #[derive(Debug, clap::Args)]
 pub struct SoakArgs {
@@ -55,7 +58,11 @@ struct Figures {
 
 /// Runs `arena soak`.
 pub fn run(args: SoakArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(args.clients >= 1, "--clients must be at least 1");
+    anyhow::ensure!(
+        (1..=MAX_CLIENTS).contains(&args.clients),
+        "--clients must be within 1..={MAX_CLIENTS} (each opens its own Zenoh session), not {}",
+        args.clients
+    );
     anyhow::ensure!(args.seconds.is_finite() && args.seconds > 0.0, "--seconds must be a positive number");
     let runtime = tokio::runtime::Runtime::new().context("cannot start the tokio runtime")?;
     let figures = runtime.block_on(soak(&args))?;

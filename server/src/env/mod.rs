@@ -258,7 +258,7 @@ impl Env {
             return Err(error(
                 ErrorCode::InvalidAction,
                 format!(
-                    "agent '{name}' is driven by the server's built-in policy {policy:?} (the env's `policy` \
+                    "agent '{name}' is driven by the server's built-in policy {policy} (the env's `policy` \
                      option): send steps without actions"
                 ),
             ));

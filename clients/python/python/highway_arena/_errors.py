@@ -66,9 +66,8 @@ _BY_CODE = {
 
 _HINTS = {
     "AgentNotLive": " (only agents in env.agents may act; reset when env.agents is empty)",
-    "InvalidAction": " (actions must lie in env.action_space(agent))",
     "UnknownScenario": " (or pass scenario_text= with a scenario file's TOML)",
-    "TooManyEnvs": " (close envs you no longer use, or start arena-server with a larger --max-envs)",
+    "TooManyEnvs": " (close envs you no longer use, or start arena-server with a larger --max-envs or --max-envs-per-client)",
 }
 
 # Zenoh's messages end with where in its sources they were raised: noise to a user.

@@ -175,9 +175,15 @@ def _run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs
     """(policy name, scenario, seed, agent, last info) of each agent's episode."""
     # Any other name is the server's to parse: an unknown one raises ValueError listing them.
     built_in = isinstance(policy, str) and policy not in CLIENT_POLICIES
-    env = ParallelEnv(
-        scenario, connect=connect, max_cycles=max_cycles, policy=policy if built_in else None, **env_kwargs
-    )
+    try:
+        env = ParallelEnv(
+            scenario, connect=connect, max_cycles=max_cycles, policy=policy if built_in else None, **env_kwargs
+        )
+    except ValueError as error:
+        if built_in and "built-in policy" in str(error):
+            # The server's names, plus what evaluate runs here.
+            raise ValueError(f"{error}, {', '.join(CLIENT_POLICIES)}, or a callable observation -> action") from None
+        raise
     rows = []
     try:
         for i in range(episodes):

@@ -27,7 +27,10 @@ pub fn run(args: RecordArgs) -> anyhow::Result<()> {
             "{python} has no highway_arena package: install it (clients/python/README.md, with the `datasets` \
              extra), or set $PYTHON to the Python that has it"
         ),
-        code => anyhow::bail!("the recorder ({python} -m highway_arena.record) failed (exit {code:?})"),
+        Some(code) => anyhow::bail!(
+            "the recorder ({python} -m highway_arena.record) stopped with exit {code}; its message is above"
+        ),
+        None => anyhow::bail!("the recorder ({python} -m highway_arena.record) was stopped by a signal"),
     }
 }
 

@@ -1,8 +1,8 @@
 //! Key expressions, built here and nowhere else.
 //!
 //! - `<prefix>/servers/<server_id>`: liveliness token of each server (discovery);
-//! - `<prefix>/clients/<client_id>`: liveliness token of each client (a server closes
-//!   the envs of a client whose token disappears);
+//! - `<prefix>/clients/<client_tag>`: liveliness token of each client, under its public
+//!   tag (a server closes the envs of a client whose token disappears);
 //! - `<prefix>/<server_id>/rpc`: the queryable that answers every `Request`;
 //! - `<prefix>/<server_id>/echo`: replies with as many bytes as asked (benchmarks).
 //!
@@ -62,9 +62,9 @@ pub fn servers_liveliness_wildcard(prefix: &str) -> Result<String, KeyError> {
     Ok(join(prefix, &["servers"])? + "/*")
 }
 
-/// `<prefix>/clients/<client_id>`.
-pub fn client_liveliness(prefix: &str, client_id: &str) -> Result<String, KeyError> {
-    join(prefix, &["clients", client_id])
+/// `<prefix>/clients/<client_tag>`.
+pub fn client_liveliness(prefix: &str, client_tag: &str) -> Result<String, KeyError> {
+    join(prefix, &["clients", client_tag])
 }
 
 /// `<prefix>/clients/*`: every client's liveliness token.
@@ -92,8 +92,8 @@ pub fn server_id_from_liveliness(prefix: &str, key: &str) -> Option<String> {
     id_after(prefix, "servers", key)
 }
 
-/// The client id of a `<prefix>/clients/<client_id>` key, or `None` for any other key.
-pub fn client_id_from_liveliness(prefix: &str, key: &str) -> Option<String> {
+/// The client tag of a `<prefix>/clients/<client_tag>` key, or `None` for any other key.
+pub fn client_tag_from_liveliness(prefix: &str, key: &str) -> Option<String> {
     id_after(prefix, "clients", key)
 }
 
@@ -115,7 +115,7 @@ mod tests {
     fn parsers_invert_the_builders_and_refuse_other_keys() {
         let key = server_liveliness("site/a", "ab12").unwrap();
         assert_eq!(server_id_from_liveliness("site/a", &key).as_deref(), Some("ab12"));
-        assert_eq!(client_id_from_liveliness("arena", "arena/clients/77").as_deref(), Some("77"));
+        assert_eq!(client_tag_from_liveliness("arena", "arena/clients/77").as_deref(), Some("77"));
         for key in [
             "other/servers/ab12",
             "arenax/servers/ab12",

@@ -44,5 +44,6 @@ pub use error::{DecodeError, ErrorCode, ErrorReply, KeyError};
 pub use messages::*;
 pub use spaces::{DType, Space};
 
-/// The protocol version every message carries first; bumped on any incompatible change.
-pub const PROTOCOL_VERSION: u16 = 2;
+/// The protocol version every message carries first; bumped on any incompatible change
+/// (3: client liveliness tokens carry `ClientId::tag`, and the server id is its Zenoh id).
+pub const PROTOCOL_VERSION: u16 = 3;

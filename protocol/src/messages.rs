@@ -33,6 +33,21 @@ macro_rules! hex_id {
 
 hex_id!(EnvId, "env");
 hex_id!(ClientId, "client");
+hex_id!(ClientTag, "public client");
+
+impl ClientId {
+    /// What this client shows the world: its liveliness token carries the tag, never the
+    /// id, because the id is what proves ownership of its envs. The tag is the first 128
+    /// bits (big-endian) of SHA3-256 over the id's 16 bytes, big-endian; it cannot be
+    /// turned back into the id.
+    pub fn tag(&self) -> ClientTag {
+        use sha3::Digest;
+        let digest = sha3::Sha3_256::digest(self.0.to_be_bytes());
+        let mut first = [0u8; 16];
+        first.copy_from_slice(&digest[..16]);
+        ClientTag(u128::from_be_bytes(first))
+    }
+}
 
 /// Everything a client asks. `version` is first, so any version can read it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -763,6 +778,13 @@ mod tests {
         // A Reply is not a Request: the decoder must not silently accept it.
         let bytes = encode(&Reply::new(ReplyBody::Closed));
         assert!(decode::<Request>(&bytes).is_err());
+    }
+
+    #[test]
+    fn a_client_tag_is_the_first_half_of_sha3_256_of_the_id() {
+        // Python: hashlib.sha3_256((1).to_bytes(16, "big")).hexdigest()[:32]
+        assert_eq!(ClientId(1).tag().to_string(), "f1232a8cea9ae1d59147fcde30471108");
+        assert_ne!(ClientId(2).tag(), ClientId(1).tag());
     }
 
     #[test]

@@ -63,11 +63,12 @@ impl Mode {
 /// How to reach the Zenoh network.
 #[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct ConnectionFlags {
-    /// Zenoh session mode.
-    #[arg(long, value_enum, default_value_t = Mode::Peer)]
-    pub mode: Mode,
+    /// Zenoh session mode [default: peer, or the --zenoh-config file's].
+    #[arg(long, value_enum)]
+    pub mode: Option<Mode>,
     /// Endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable). A server with neither
-    /// --listen nor --connect listens on tcp/127.0.0.1:7447.
+    /// --listen nor --connect listens on tcp/127.0.0.1:7447, or where its --zenoh-config
+    /// file says; a client listens only where told by this flag.
     #[arg(long, value_name = "ENDPOINT")]
     pub listen: Vec<String>,
     /// Endpoint to connect to (repeatable). A client with neither --listen nor --connect
@@ -77,7 +78,8 @@ pub struct ConnectionFlags {
     /// Key-expression prefix every server and client of one deployment shares.
     #[arg(long, default_value = crate::keys::DEFAULT_PREFIX)]
     pub prefix: String,
-    /// A Zenoh configuration file (JSON5); the flags above are applied on top of it.
+    /// A Zenoh configuration file (JSON5: credentials, access control, TLS; see deploy/);
+    /// the flags given are applied on top of it.
     #[arg(long, value_name = "FILE")]
     pub zenoh_config: Option<PathBuf>,
     /// Turn on multicast and gossip scouting, to find peers on the LAN without endpoints.
@@ -95,7 +97,7 @@ pub struct ConnectionFlags {
 impl Default for ConnectionFlags {
     fn default() -> Self {
         ConnectionFlags {
-            mode: Mode::Peer,
+            mode: None,
             listen: Vec::new(),
             connect: Vec::new(),
             prefix: crate::keys::DEFAULT_PREFIX.to_string(),
@@ -122,10 +124,13 @@ impl ConnectionFlags {
         })
     }
 
-    /// The endpoints the session will listen on (server) or connect to (client).
+    /// The endpoints the session will listen on (server) or connect to (client), as the
+    /// flags give them (a server's config file may add its own).
     pub fn endpoints(&self, role: Role) -> Vec<String> {
         match role {
-            Role::Server if self.listen.is_empty() && self.connect.is_empty() => vec![DEFAULT_ENDPOINT.to_string()],
+            Role::Server if self.zenoh_config.is_none() && self.listen.is_empty() && self.connect.is_empty() => {
+                vec![DEFAULT_ENDPOINT.to_string()]
+            }
             Role::Server => self.listen.clone(),
             Role::Client if self.listen.is_empty() && self.connect.is_empty() => vec![DEFAULT_ENDPOINT.to_string()],
             Role::Client => self.connect.clone(),
@@ -144,8 +149,10 @@ impl ConnectionFlags {
         if let Some(bad) = listen.iter().chain(&connect).find(|endpoint| !is_endpoint(endpoint)) {
             return Err(format!("'{bad}' is not a Zenoh endpoint: write PROTOCOL/HOST:PORT, e.g. {DEFAULT_ENDPOINT}"));
         }
+        let from_file = self.zenoh_config.is_some();
         if listen.is_empty() && connect.is_empty() {
             match role {
+                Role::Server if from_file => {}
                 Role::Server => listen.push(DEFAULT_ENDPOINT.to_string()),
                 Role::Client => connect.push(DEFAULT_ENDPOINT.to_string()),
             }
@@ -155,10 +162,15 @@ impl ConnectionFlags {
         };
         let quoted =
             |items: &[String]| format!("[{}]", items.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(","));
-        set(&mut config, "mode", format!("{:?}", self.mode.name()))?;
-        // A client listens on nothing unless told to: left to Zenoh, a peer listens on
-        // every interface and clients connect to each other over them.
-        if !listen.is_empty() || role == Role::Client {
+        match (self.mode, from_file) {
+            (Some(mode), _) => set(&mut config, "mode", format!("{:?}", mode.name()))?,
+            (None, false) => set(&mut config, "mode", format!("{:?}", Mode::Peer.name()))?,
+            (None, true) => {}
+        }
+        // A process listens only where it is told: left to Zenoh, a peer listens on every
+        // interface and clients connect to each other over them. A client listens only
+        // where --listen says, whatever a config file holds.
+        if !listen.is_empty() || role == Role::Client || !connect.is_empty() || !from_file {
             set(&mut config, "listen/endpoints", quoted(&listen))?;
         }
         if !connect.is_empty() {

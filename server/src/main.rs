@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
-use arena_protocol::session::{ConnectionFlags, Role};
+use arena_protocol::session::{ConnectionFlags, Mode, Role};
 use arena_server::transport::{Limits, Scenarios, Server};
 use clap::Parser;
 
@@ -30,6 +30,10 @@ struct Args {
     /// file stops the server with the file and the error.
     #[arg(long)]
     scenarios: Option<PathBuf>,
+    /// Only route for others (with --mode router): host no envs and announce no server.
+    /// The meeting point of a deployment whose servers and clients connect to it.
+    #[arg(long)]
+    route_only: bool,
 }
 
 /// Prints a line to stdout, ignoring a stdout that has gone (a closed pipe must not
@@ -51,15 +55,43 @@ fn main() -> anyhow::Result<()> {
             "--max-envs and --max-envs-per-client must be at least 1 (a server that can hold no env serves nothing)"
         );
     }
+    if args.route_only && args.connection.mode != Some(Mode::Router) {
+        anyhow::bail!("--route-only needs --mode router (a peer or client does not route for others)");
+    }
     let runtime =
         tokio::runtime::Builder::new_multi_thread().enable_all().build().context("cannot start the tokio runtime")?;
-    runtime.block_on(serve(args))
+    runtime.block_on(async { if args.route_only { route(args).await } else { serve(args).await } })
+}
+
+async fn open_session(args: &Args) -> anyhow::Result<zenoh::Session> {
+    let config = args.connection.zenoh_config(Role::Server).map_err(anyhow::Error::msg)?;
+    zenoh::open(config).await.map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))
+}
+
+/// Where the banner says the session is reachable: what it listens on, else what it
+/// connected to.
+fn reachable(args: &Args) -> String {
+    let listen = args.connection.endpoints(Role::Server);
+    match (listen.is_empty(), args.connection.connect.is_empty()) {
+        (false, _) => format!("serving on {}", listen.join(", ")),
+        (true, false) => format!("serving through {}", args.connection.connect.join(", ")),
+        (true, true) => "serving where its Zenoh config says".to_string(),
+    }
+}
+
+async fn route(args: Args) -> anyhow::Result<()> {
+    let session = open_session(&args).await?;
+    let listen = args.connection.endpoints(Role::Server);
+    let at = if listen.is_empty() { "where its Zenoh config says".to_string() } else { listen.join(", ") };
+    say!("arena-server {} routing only (zenoh id {}) on {at}", env!("CARGO_PKG_VERSION"), session.zid());
+    say!("stop with Ctrl-C");
+    shutdown_signal().await;
+    session.close().await.map_err(|e| anyhow::anyhow!("closing the session failed: {e}"))
 }
 
 async fn serve(args: Args) -> anyhow::Result<()> {
     let scenarios = Scenarios::load(args.scenarios.as_deref()).map_err(anyhow::Error::msg)?;
-    let config = args.connection.zenoh_config(Role::Server).map_err(anyhow::Error::msg)?;
-    let session = zenoh::open(config).await.map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))?;
+    let session = open_session(&args).await?;
     let limits = Limits {
         max_envs: args.max_envs,
         max_envs_per_client: args.max_envs_per_client,
@@ -68,11 +100,12 @@ async fn serve(args: Args) -> anyhow::Result<()> {
     let server = Server::start(session, &args.connection.prefix, scenarios.clone(), limits)
         .await
         .map_err(|e| anyhow::anyhow!("cannot declare the server: {e}"))?;
-    let endpoints = args.connection.endpoints(Role::Server).join(", ");
-    say!("arena-server {} (server id {}) serving on {endpoints}", env!("CARGO_PKG_VERSION"), server.id());
+    say!("arena-server {} (server id {}) {}", env!("CARGO_PKG_VERSION"), server.id(), reachable(&args));
     say!("scenarios: {}", scenarios.names().join(", "));
     say!("connect from another terminal:");
-    let endpoint = args.connection.endpoints(Role::Server).first().cloned().unwrap_or_default();
+    let endpoint = (args.connection.endpoints(Role::Server).into_iter().chain(args.connection.connect.iter().cloned()))
+        .next()
+        .unwrap_or_else(|| "ENDPOINT".to_string());
     say!("  arena play --scenario merge --connect {endpoint}");
     say!(
         "  python -c \"import highway_arena; env = highway_arena.parallel_env('merge', connect='{endpoint}'); print(env.reset(seed=0))\""

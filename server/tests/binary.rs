@@ -1,45 +1,35 @@
 //! The `arena-server` binary itself: it serves on the endpoint it is given, answers a
 //! request over a real Zenoh session, and shuts down cleanly on SIGTERM.
 
-use std::io::{BufRead, BufReader};
-use std::process::{Command, Stdio};
+mod common;
+
+use std::process::Command;
+
+use common::{Process, free_port};
 use std::time::Duration;
 
 use arena_protocol::session::{ConnectionFlags, Role};
 use arena_protocol::{ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys};
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map(|a| a.port()).expect("a free port")
-}
-
-/// An `arena-server` process listening on a free loopback port, its stdout after the
-/// banner line, and the server id the banner names.
+/// An `arena-server` process listening on a free loopback port, and the server id its
+/// banner names.
 struct Running {
-    server: std::process::Child,
-    lines: std::io::Lines<BufReader<std::process::ChildStdout>>,
+    process: Process,
     endpoint: String,
     server_id: String,
 }
 
 fn run_server(extra: &[&str]) -> Running {
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let mut server = Command::new(env!("CARGO_BIN_EXE_arena-server"))
-        .args(["--listen", &endpoint])
-        .args(extra)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start arena-server");
-    let mut lines = BufReader::new(server.stdout.take().expect("stdout")).lines();
-    let banner = lines.next().expect("a first line").expect("utf-8");
-    assert!(banner.contains(&format!("serving on {endpoint}")), "{banner}");
-    let server_id =
-        banner.split("server id ").nth(1).and_then(|rest| rest.split(')').next()).expect("an id").to_string();
-    Running { server, lines, endpoint, server_id }
+    let process = Process::start(&[&["--listen", endpoint.as_str()], extra].concat());
+    assert!(process.banner.contains(&format!("serving on {endpoint}")), "{}", process.banner);
+    let server_id = process.server_id();
+    Running { process, endpoint, server_id }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn serves_then_stops_on_sigterm() {
-    let Running { mut server, lines, endpoint, server_id } = run_server(&["--max-envs", "4"]);
+    let Running { mut process, endpoint, server_id } = run_server(&["--max-envs", "4"]);
 
     let flags = ConnectionFlags::connecting_to(&endpoint);
     let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
@@ -66,11 +56,9 @@ async fn serves_then_stops_on_sigterm() {
     }
     session.close().await.unwrap();
 
-    let killed = Command::new("kill").args(["-TERM", &server.id().to_string()]).status().expect("kill");
-    assert!(killed.success());
-    let status = server.wait().expect("exit");
+    let status = process.terminate();
     assert!(status.success(), "arena-server exited with {status}");
-    let rest: Vec<String> = lines.map_while(Result::ok).collect();
+    let rest = process.rest();
     assert!(rest.iter().any(|line| line.contains("shutting down")), "{rest:?}");
 }
 
@@ -119,16 +107,9 @@ async fn a_scenario_file_is_served_under_the_name_it_declares() {
     let merge = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/merge.toml")).unwrap();
     std::fs::write(dir.join("file-stem.toml"), merge.replace("name = \"merge\"", "name = \"declared\"")).unwrap();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let mut server = Command::new(env!("CARGO_BIN_EXE_arena-server"))
-        .args(["--listen", &endpoint, "--scenarios"])
-        .arg(&dir)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start arena-server");
-    let lines: Vec<String> =
-        BufReader::new(server.stdout.take().expect("stdout")).lines().take(2).map_while(Result::ok).collect();
-    server.kill().unwrap();
-    server.wait().unwrap();
+    let mut process = Process::start(&["--listen", &endpoint, "--scenarios", dir.to_str().expect("a utf-8 path")]);
+    let lines: Vec<String> = process.lines.as_mut().expect("stdout").take(1).map_while(Result::ok).collect();
+    drop(process);
     std::fs::remove_dir_all(&dir).unwrap();
     let listed = lines.iter().find(|l| l.starts_with("scenarios:")).expect("the scenarios line");
     assert!(listed.contains("declared") && !listed.contains("file-stem"), "{listed}");
@@ -136,8 +117,7 @@ async fn a_scenario_file_is_served_under_the_name_it_declares() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_echo_key_answers_at_most_its_cap_however_much_is_asked() {
-    // `_lines` keeps the server's stdout open while it runs.
-    let Running { mut server, lines: _lines, endpoint, server_id } = run_server(&[]);
+    let Running { process, endpoint, server_id } = run_server(&[]);
     let flags = ConnectionFlags::connecting_to(&endpoint);
     let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
     let key = keys::server_echo("arena", &server_id).unwrap();
@@ -154,8 +134,7 @@ async fn the_echo_key_answers_at_most_its_cap_however_much_is_asked() {
         }
     }
     session.close().await.unwrap();
-    server.kill().unwrap();
-    server.wait().unwrap();
+    drop(process);
     // A 4-byte request cannot ask for megabytes: 64 KiB at most.
     assert_eq!(sizes, [100, arena_server::transport::ECHO_MAX_REPLY]);
 }
@@ -171,8 +150,7 @@ async fn ask(session: &zenoh::Session, key: &str, body: RequestBody) -> Option<R
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sigterm_under_load_answers_every_request_then_exits_0() {
-    // `_lines` keeps the server's stdout open while it runs.
-    let Running { mut server, lines: _lines, endpoint, server_id } = run_server(&[]);
+    let Running { mut process, endpoint, server_id } = run_server(&[]);
     let flags = ConnectionFlags::connecting_to(&endpoint);
     let session = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
     let key = keys::server_rpc("arena", &server_id).unwrap();
@@ -218,9 +196,7 @@ async fn sigterm_under_load_answers_every_request_then_exits_0() {
         }));
     }
     tokio::time::sleep(Duration::from_millis(500)).await;
-    let killed = Command::new("kill").args(["-TERM", &server.id().to_string()]).status().expect("kill");
-    assert!(killed.success());
-    let status = tokio::task::spawn_blocking(move || server.wait().expect("exit")).await.unwrap();
+    let status = tokio::task::spawn_blocking(move || process.terminate()).await.unwrap();
     assert!(status.success(), "arena-server exited with {status}");
     for handle in loops {
         let (steps, last) = handle.await.expect("a loop");
@@ -241,11 +217,42 @@ async fn sigterm_under_load_answers_every_request_then_exits_0() {
 #[test]
 fn a_closed_stdout_does_not_stop_the_server() {
     // Piped into `head`, say: the server's stdout goes away while it serves.
-    let Running { mut server, lines, .. } = run_server(&[]);
-    drop(lines);
+    let Running { mut process, .. } = run_server(&[]);
+    drop(process.lines.take());
     std::thread::sleep(Duration::from_millis(200));
-    let killed = Command::new("kill").args(["-TERM", &server.id().to_string()]).status().expect("kill");
-    assert!(killed.success());
-    let status = server.wait().expect("exit");
+    let status = process.terminate();
     assert!(status.success(), "its last line had nowhere to go, and it exited with {status}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_whose_server_was_killed_and_restarted_is_told_its_env_is_gone_at_once() {
+    let Running { process, endpoint, server_id } = run_server(&[]);
+    let flags = ConnectionFlags { timeout: 5.0, retries: 2, ..ConnectionFlags::connecting_to(&endpoint) };
+    let client = arena_client::Client::connect(&flags).await.expect("connect");
+    let server = client.pick_server().await.expect("a server");
+    assert_eq!(server, server_id);
+    let mut env = client
+        .create_env(&server, arena_protocol::ScenarioSource::Named("merge".into()), Default::default())
+        .await
+        .expect("create");
+    env.reset(Some(0), vec![]).await.expect("reset");
+    env.step(vec![]).await.expect("a step");
+
+    drop(process); // SIGKILL: no goodbye
+    let restarted = Process::start(&["--listen", &endpoint]);
+    assert!(restarted.banner.contains(&format!("serving on {endpoint}")), "{}", restarted.banner);
+    assert_ne!(restarted.server_id(), server_id, "a restarted server is another server");
+
+    let error = env.step(vec![]).await.expect_err("the env died with its server");
+    // ServerGone, not Timeout: the client says so only when no attempt waited out its
+    // timeout (the old server's key has no queryable left), i.e. at once, not a hang.
+    match &error {
+        arena_client::ClientError::ServerGone { server, .. } => assert_eq!(server, &server_id),
+        other => panic!("expected ServerGone, got {other:?}"),
+    }
+    let message = error.to_string();
+    assert!(message.contains(&server_id) && message.contains("no longer exist"), "{message}");
+    // The new server serves the same client.
+    assert_eq!(client.pick_server().await.expect("the new server"), restarted.server_id());
+    client.close().await.unwrap();
 }

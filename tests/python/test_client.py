@@ -1,8 +1,10 @@
 """What the package promises beyond PettingZoo's and Gymnasium's checks: clear errors
 on bad input that never hang past the timeout, fresh arrays, idempotent close, timing."""
 
+import pathlib
 import pickle
 import signal
+import subprocess
 import threading
 import time
 
@@ -10,6 +12,9 @@ import numpy as np
 import pytest
 
 import highway_arena
+from highway_arena._server import _free_port, find_server_binary
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
 
 
 def test_no_server_at_the_address_raises_within_two_seconds_naming_it_with_advice():
@@ -271,3 +276,45 @@ def test_diagnostics_on_request_count_every_game_theoretic_cars_plans():
     _, infos = plain.reset(seed=1)
     assert not any(key.startswith("gt.") for key in infos["ego_0"])
     plain.close()
+
+
+def _start(args, banner_has):
+    """An arena-server process started from the repository's root (deploy/ paths are
+    relative to it), once its banner says ``banner_has``."""
+    process = subprocess.Popen([find_server_binary(None), *args], cwd=REPO, stdout=subprocess.PIPE, text=True)
+    banner = process.stdout.readline()
+    if banner_has not in banner:
+        _stop(process)
+        raise AssertionError(f"{args}: {banner!r}")
+    return process
+
+
+def _stop(process):
+    process.kill()
+    process.wait()
+    process.stdout.close()
+
+
+def test_a_deployment_with_credentials_serves_only_who_logs_in():
+    router = f"tcp/127.0.0.1:{_free_port()}"
+    route = ["--mode", "router", "--route-only", "--zenoh-config", "deploy/auth/router.json5", "--listen", router]
+    serve = ["--mode", "client", "--connect", router, "--zenoh-config", "deploy/auth/server.json5"]
+    processes = [_start(route, "routing only")]
+    try:
+        processes.append(_start(serve, "serving through"))
+        client_config = REPO / "deploy/auth/client.json5"
+        env = highway_arena.parallel_env(
+            "merge", connect=router, mode="client", zenoh_config=client_config, connect_timeout=5.0
+        )
+        observations, _ = env.reset(seed=0)
+        assert list(observations) == ["ec_0"]
+        env.close()
+        with pytest.raises(highway_arena.ServerNotFoundError, match="credentials .*zenoh_config="):
+            highway_arena.parallel_env("merge", connect=router, mode="client")
+        with pytest.raises(ValueError, match="zenoh_config .*nowhere.json5 is not a file"):
+            highway_arena.parallel_env("merge", connect=router, zenoh_config="nowhere.json5")
+        with pytest.raises(ValueError, match="mode must be peer, client or router"):
+            highway_arena.parallel_env("merge", connect=router, mode="relay")
+    finally:
+        for process in processes:
+            _stop(process)

@@ -4,7 +4,7 @@
 mod common;
 
 use arena_client::{Action, ClientError, CreateOptions, ErrorCode, OptionValue, ScenarioSource};
-use arena_protocol::session::{ConnectionFlags, Role};
+use arena_protocol::session::{ConnectionFlags, Mode, Role};
 use arena_protocol::{ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys};
 use zenoh::Wait;
 
@@ -113,8 +113,10 @@ async fn same_seed_same_replies_across_clients_other_seed_differs() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_client_cannot_touch_another_clients_env() {
-    let harness = common::start().await;
-    let (owner, intruder) = (harness.client().await, harness.client().await);
+    // Through a router, so that the intruder sees what other clients show of themselves
+    // (a peer server does not pass liveliness tokens between its clients).
+    let harness = common::start_router().await;
+    let (owner, intruder) = (harness.client_as(Mode::Client).await, harness.client_as(Mode::Client).await);
     let mut env = harness.env(&owner, "merge").await;
     env.reset(Some(0), vec![]).await.unwrap();
     let request = Request {
@@ -124,8 +126,63 @@ async fn a_client_cannot_touch_another_clients_env() {
     };
     let reply = raw(&harness, &encode(&request)).await;
     assert!(matches!(reply.body, ReplyBody::Error(ref e) if e.code == ErrorCode::UnknownEnv), "{reply:?}");
+
+    // Everything the intruder can learn about the owner is its liveliness token: a tag,
+    // not the id the server checks. Every number seen there is refused too.
+    let flags = ConnectionFlags { mode: Some(Mode::Client), ..ConnectionFlags::connecting_to(&harness.endpoint) };
+    let spy = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
+    let tokens = spy.liveliness().get(keys::clients_liveliness_wildcard("arena").unwrap()).await.unwrap();
+    let mut seen = Vec::new();
+    while let Ok(token) = tokens.recv_async().await {
+        let key = token.result().expect("a token").key_expr().to_string();
+        seen.push(keys::client_tag_from_liveliness("arena", &key).expect("a client key"));
+    }
+    spy.close().await.unwrap();
+    assert!(seen.contains(&owner.id().tag().to_string()), "the owner's token is seen: {seen:?}");
+    assert!(!seen.contains(&owner.id().to_string()), "the owner's id is never shown: {seen:?}");
+    for (k, tag) in seen.iter().enumerate() {
+        let client = ClientId(u128::from_str_radix(tag, 16).unwrap());
+        let close = Request { version: PROTOCOL_VERSION, client, body: RequestBody::Close { env: env.id() } };
+        let step = Request {
+            version: PROTOCOL_VERSION,
+            client,
+            body: RequestBody::Step { env: env.id(), seq: 100 + k as u64, actions: vec![] },
+        };
+        for request in [step, close] {
+            assert_eq!(raw_code(&raw(&harness, &encode(&request)).await), ErrorCode::UnknownEnv);
+        }
+    }
     // The owner's env did not move.
     assert_eq!(env.step(vec![]).await.unwrap().seq, 2);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn replies_from_any_session_but_the_servers_are_dropped() {
+    // Through a router, another session can declare a queryable on the server's request
+    // key (deploy/auth's access control forbids it; the default does not) and answer
+    // first. The client takes only the reply whose replier is the server's session.
+    let harness = common::start_behind_router().await;
+    let flags = ConnectionFlags { mode: Some(Mode::Client), ..ConnectionFlags::connecting_to(&harness.endpoint) };
+    let rogue = zenoh::open(flags.zenoh_config(Role::Client).unwrap()).await.unwrap();
+    let forged = encode(&Reply::new(ReplyBody::Closed));
+    let asked = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let counter = std::sync::Arc::clone(&asked);
+    let _queryable = rogue
+        .declare_queryable(keys::server_rpc("arena", harness.server.id()).unwrap())
+        .callback(move |query| {
+            counter.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            query.reply(query.key_expr().clone(), forged.clone()).wait().ok();
+        })
+        .await
+        .unwrap();
+    tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+    let client = harness.client_as(Mode::Client).await;
+    for _ in 0..20 {
+        let info = client.server_info(harness.server.id()).await.expect("the server's own reply");
+        assert_eq!(info.server_id, harness.server.id());
+    }
+    assert!(asked.load(std::sync::atomic::Ordering::SeqCst) > 0, "the rogue queryable was never asked");
+    rogue.close().await.unwrap();
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

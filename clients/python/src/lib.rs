@@ -54,25 +54,33 @@ struct Client {
 #[pymethods]
 impl Client {
     #[new]
-    #[pyo3(signature = (connect, prefix = DEFAULT_PREFIX.to_string(), timeout = DEFAULT_TIMEOUT, retries = 2, mode = "peer".to_string()))]
+    #[pyo3(signature = (connect, prefix = DEFAULT_PREFIX.to_string(), timeout = DEFAULT_TIMEOUT, retries = 2, mode = None, zenoh_config = None))]
     fn new(
         py: Python<'_>,
         connect: Vec<String>,
         prefix: String,
         timeout: f64,
         retries: u32,
-        mode: String,
+        mode: Option<String>,
+        zenoh_config: Option<std::path::PathBuf>,
     ) -> PyResult<Client> {
         if !(timeout.is_finite() && timeout > 0.0) {
             return Err(PyValueError::new_err(format!("timeout must be a positive number of seconds, not {timeout}")));
         }
-        let mode = match mode.as_str() {
-            "peer" => Mode::Peer,
-            "client" => Mode::Client,
-            "router" => Mode::Router,
-            other => return Err(PyValueError::new_err(format!("mode must be peer, client or router, not {other:?}"))),
+        let mode = match mode.as_deref() {
+            None => None,
+            Some("peer") => Some(Mode::Peer),
+            Some("client") => Some(Mode::Client),
+            Some("router") => Some(Mode::Router),
+            Some(other) => {
+                return Err(PyValueError::new_err(format!("mode must be peer, client or router, not {other:?}")));
+            }
         };
-        let flags = ConnectionFlags { mode, connect, prefix, timeout, retries, ..ConnectionFlags::default() };
+        if let Some(path) = zenoh_config.as_ref().filter(|path| !path.is_file()) {
+            return Err(PyValueError::new_err(format!("zenoh_config {} is not a file", path.display())));
+        }
+        let flags =
+            ConnectionFlags { mode, connect, prefix, timeout, retries, zenoh_config, ..ConnectionFlags::default() };
         let inner = py.detach(|| BlockingClient::connect(&flags)).map_err(to_py_err)?;
         Ok(Client { inner })
     }

@@ -37,6 +37,7 @@ use arena_protocol::{
     ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys,
     session::{ConnectionFlags, Role},
 };
+use zenoh::query::{ConsolidationMode, QueryTarget};
 
 /// Occurs when a call to a server fails.
 #[derive(Debug, Clone, PartialEq)]
@@ -149,7 +150,8 @@ impl Client {
         retries: u32,
     ) -> Result<Client> {
         let id = ClientId(rand::random::<u128>());
-        let token_key = keys::client_liveliness(prefix, &id.to_string()).map_err(zenoh_error)?;
+        // The token shows the id's tag, never the id: the id is what proves ownership.
+        let token_key = keys::client_liveliness(prefix, &id.tag().to_string()).map_err(zenoh_error)?;
         let token = session.liveliness().declare_token(token_key).await.map_err(zenoh_error)?;
         let token = std::sync::Mutex::new(Some(token));
         let inner = Inner { session, prefix: prefix.to_string(), id, timeout, retries, token };
@@ -273,7 +275,7 @@ impl Client {
         let mut unanswered = true;
         for _ in 0..attempts {
             let sent = Instant::now();
-            if let Some(bytes) = self.get_once(&key, bytes.clone()).await? {
+            if let Some(bytes) = self.get_once(&key, server, bytes.clone()).await? {
                 let reply: Reply = decode(&bytes)
                     .map_err(|e| ClientError::Protocol(format!("cannot decode the reply to {what}: {e}")))?;
                 return match reply.body {
@@ -295,16 +297,29 @@ impl Client {
         Err(ClientError::Timeout { what: what.to_string(), waited })
     }
 
-    /// One Zenoh get; `None` when nothing answered in time.
-    async fn get_once(&self, key: &str, payload: Vec<u8>) -> Result<Option<Vec<u8>>> {
-        let replies =
-            self.inner.session.get(key).payload(payload).timeout(self.inner.timeout).await.map_err(zenoh_error)?;
+    /// One Zenoh get answered by `server`'s session; `None` when it did not answer in
+    /// time. Replies from any other session (one that declared a queryable on the
+    /// server's key) are dropped, so nobody can answer in the server's place.
+    async fn get_once(&self, key: &str, server: &str, payload: Vec<u8>) -> Result<Option<Vec<u8>>> {
+        let replies = self
+            .inner
+            .session
+            .get(key)
+            .payload(payload)
+            .target(QueryTarget::All)
+            .consolidation(ConsolidationMode::None)
+            .timeout(self.inner.timeout)
+            .await
+            .map_err(zenoh_error)?;
         // An error reply (Zenoh's own timeout among them) counts as no reply: the request
         // is retried like a missing one, and `call` says what happened in the end.
-        match replies.recv_async().await {
-            Ok(reply) => Ok(reply.result().ok().map(|sample| sample.payload().to_bytes().into_owned())),
-            Err(_) => Ok(None),
+        while let Ok(reply) = replies.recv_async().await {
+            let from_server = reply.replier_id().is_some_and(|replier| replier.zid().to_string() == server);
+            if let (true, Ok(sample)) = (from_server, reply.result()) {
+                return Ok(Some(sample.payload().to_bytes().into_owned()));
+            }
         }
+        Ok(None)
     }
 
     /// A raw Zenoh get on the server's echo key: sends `request_bytes` and asks for a
@@ -314,7 +329,7 @@ impl Client {
         let mut payload = vec![0u8; request_bytes.max(4)];
         payload[..4].copy_from_slice(&reply_bytes.to_le_bytes());
         let started = Instant::now();
-        match self.get_once(&key, payload).await? {
+        match self.get_once(&key, server, payload).await? {
             Some(_) => Ok(started.elapsed()),
             None => Err(ClientError::Timeout { what: "echo".into(), waited: started.elapsed() }),
         }

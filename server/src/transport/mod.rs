@@ -9,7 +9,7 @@ mod registry;
 use std::sync::{Arc, RwLock};
 use std::time::{Duration, Instant};
 
-use arena_protocol::{ClientId, ErrorCode, ErrorReply, PROTOCOL_VERSION, Reply, ReplyBody, encode, keys};
+use arena_protocol::{ClientTag, ErrorCode, ErrorReply, PROTOCOL_VERSION, Reply, ReplyBody, encode, keys};
 use zenoh::Wait;
 use zenoh::sample::SampleKind;
 
@@ -22,6 +22,17 @@ pub const SHUTDOWN_GRACE: Duration = Duration::from_millis(100);
 /// The largest echo reply (bytes): more than any single-env step reply `arena bench`
 /// compares it with (about 1 KB on highway.toml).
 pub const ECHO_MAX_REPLY: usize = 64 * 1024;
+
+/// Hands back to the system the memory freed by closed envs and departed sessions. glibc
+/// keeps freed memory in its per-thread arenas, so without this a server's resident size
+/// stays near its peak after clients leave.
+fn return_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim takes no pointers; it only releases free pages of glibc's heaps.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
 
 /// A running server. Dropping it undeclares everything; `close` also ends the session.
 pub struct Server {
@@ -47,7 +58,8 @@ impl Server {
         scenarios: Scenarios,
         limits: Limits,
     ) -> zenoh::Result<Server> {
-        let server_id = format!("{:032x}", rand::random::<u128>());
+        // The session's own id, so clients can check who answered (`Reply::replier_id`).
+        let server_id = session.zid().to_string();
         let registry = Arc::new(Registry::new(server_id.clone(), scenarios, limits));
 
         let rpc = keys::server_rpc(prefix, &server_id)?;
@@ -108,9 +120,10 @@ impl Server {
                 if sample.kind() != SampleKind::Delete {
                     return;
                 }
-                let id = keys::client_id_from_liveliness(&prefix_owned, sample.key_expr().as_str());
-                if let Some(client) = id.and_then(|id| id.parse::<ClientId>().ok()) {
+                let tag = keys::client_tag_from_liveliness(&prefix_owned, sample.key_expr().as_str());
+                if let Some(client) = tag.and_then(|tag| tag.parse::<ClientTag>().ok()) {
                     let closed = watcher.drop_client(client);
+                    return_freed_memory();
                     if closed > 0 {
                         eprintln!("arena-server: client {client} is gone; closed its {closed} env(s)");
                     }
@@ -125,6 +138,7 @@ impl Server {
                 tokio::time::sleep(period).await;
                 let closed = sweeper_registry.reclaim_idle(Instant::now());
                 if closed > 0 {
+                    return_freed_memory();
                     eprintln!("arena-server: closed {closed} idle env(s)");
                 }
             }

@@ -9,9 +9,9 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use arena_protocol::{
-    BatchItem, BatchStep, ClientId, CreateOptions, EnvId, ErrorCode, ErrorReply, MAX_MESSAGE_BYTES, OptionValue,
-    PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetReply, ScenarioSource, ServerInfo, StepReply,
-    decode, encode, peek_version,
+    BatchItem, BatchStep, ClientId, ClientTag, CreateOptions, EnvId, ErrorCode, ErrorReply, MAX_MESSAGE_BYTES,
+    OptionValue, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetReply, ScenarioSource, ServerInfo,
+    StepReply, decode, encode, peek_version,
 };
 
 use crate::env::Env;
@@ -430,9 +430,10 @@ impl Registry {
         Ok(ReplyBody::Closed)
     }
 
-    /// Closes every env of `client` (its liveliness token is gone); returns how many.
-    pub fn drop_client(&self, client: ClientId) -> usize {
-        self.retain(|slot| slot.owner != client)
+    /// Closes every env of the client whose public tag is `client` (its liveliness token
+    /// is gone); returns how many.
+    pub fn drop_client(&self, client: ClientTag) -> usize {
+        self.retain(|slot| slot.owner.tag() != client)
     }
 
     /// Closes envs idle for longer than the limit; returns how many.

@@ -6,12 +6,14 @@
 use std::time::Duration;
 
 use arena_client::{Client, CreateOptions, RemoteEnv, ScenarioSource};
-use arena_protocol::session::{ConnectionFlags, Role};
+use arena_protocol::session::{ConnectionFlags, Mode, Role};
 use arena_server::transport::{Limits, Scenarios, Server};
 
 pub struct Harness {
     pub server: Server,
     pub endpoint: String,
+    /// The router the server connects to, when it is not reached directly.
+    pub router: Option<zenoh::Session>,
 }
 
 fn free_port() -> u16 {
@@ -24,17 +26,50 @@ pub async fn start() -> Harness {
 }
 
 pub async fn start_with(limits: Limits) -> Harness {
+    start_as(Mode::Peer, limits).await
+}
+
+/// A server whose session is a Zenoh router: it routes between the sessions that
+/// connect to it, as the meeting point of a site does.
+pub async fn start_router() -> Harness {
+    start_as(Mode::Router, Limits::default()).await
+}
+
+/// A plain Zenoh router, and a server connected to it as a Zenoh client; `endpoint` is
+/// the router's, so every other session is as near the server as the server's own.
+pub async fn start_behind_router() -> Harness {
     let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let flags = ConnectionFlags { listen: vec![endpoint.clone()], ..ConnectionFlags::default() };
+    let listen = ConnectionFlags { mode: Some(Mode::Router), listen: vec![endpoint.clone()], ..Default::default() };
+    let router = zenoh::open(listen.zenoh_config(Role::Server).expect("config")).await.expect("open the router");
+    let connect = ConnectionFlags { mode: Some(Mode::Client), ..ConnectionFlags::connecting_to(&endpoint) };
+    let session = zenoh::open(connect.zenoh_config(Role::Server).expect("config")).await.expect("open server session");
+    let scenarios = Scenarios::load(None).expect("the built-in scenarios load");
+    let server = Server::start(session, "arena", scenarios, Limits::default()).await.expect("start server");
+    Harness { server, endpoint, router: Some(router) }
+}
+
+async fn start_as(mode: Mode, limits: Limits) -> Harness {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let flags = ConnectionFlags { mode: Some(mode), listen: vec![endpoint.clone()], ..ConnectionFlags::default() };
     let session = zenoh::open(flags.zenoh_config(Role::Server).expect("config")).await.expect("open server session");
     let scenarios = Scenarios::load(None).expect("the built-in scenarios load");
     let server = Server::start(session, "arena", scenarios, limits).await.expect("start server");
-    Harness { server, endpoint }
+    Harness { server, endpoint, router: None }
 }
 
 impl Harness {
     pub async fn client(&self) -> Client {
-        let flags = ConnectionFlags { timeout: 5.0, retries: 1, ..ConnectionFlags::connecting_to(&self.endpoint) };
+        self.client_as(Mode::Peer).await
+    }
+
+    /// A client whose session is in `mode` (a Zenoh client is routed by a router server).
+    pub async fn client_as(&self, mode: Mode) -> Client {
+        let flags = ConnectionFlags {
+            mode: Some(mode),
+            timeout: 5.0,
+            retries: 1,
+            ..ConnectionFlags::connecting_to(&self.endpoint)
+        };
         let client = Client::connect(&flags).await.expect("connect client");
         // Liveliness of a fresh peer takes a moment to propagate.
         for _ in 0..100 {

@@ -22,11 +22,13 @@ class BatchEnv:
         prefix=DEFAULT_PREFIX,
         timeout=DEFAULT_TIMEOUT,
         connect_timeout=DEFAULT_CONNECT_TIMEOUT,
+        zenoh_config=None,
+        mode=None,
         **options,
     ):
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
-        self._connection = Connection(connect, prefix, timeout, connect_timeout)
+        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode)
         self._envs = []
         try:
             for _ in range(num_envs):

@@ -85,9 +85,18 @@ def reset_options(options) -> dict:
 
 class Connection:
     """One Zenoh session and the server picked on it. ``timeout`` bounds, in seconds,
-    how long any one call waits in all (retries included)."""
+    how long any one call waits in all (retries included); ``zenoh_config`` is a Zenoh
+    JSON5 file (user and password, TLS) for a deployment with access control."""
 
-    def __init__(self, connect=None, prefix=DEFAULT_PREFIX, timeout=DEFAULT_TIMEOUT, connect_timeout=DEFAULT_CONNECT_TIMEOUT):
+    def __init__(
+        self,
+        connect=None,
+        prefix=DEFAULT_PREFIX,
+        timeout=DEFAULT_TIMEOUT,
+        connect_timeout=DEFAULT_CONNECT_TIMEOUT,
+        zenoh_config=None,
+        mode=None,
+    ):
         endpoints = _endpoints(connect)
         timeout, connect_timeout = float(timeout), float(connect_timeout)
         if not timeout > 0 or timeout == float("inf"):
@@ -96,9 +105,24 @@ class Connection:
             raise ValueError(f"connect_timeout must be a positive number of seconds, not {connect_timeout}")
         where = ", ".join(endpoints)
         try:
-            self.client = _core.Client(endpoints, prefix=prefix, timeout=timeout / _ATTEMPTS, retries=_ATTEMPTS - 1)
+            self.client = _core.Client(
+                endpoints,
+                prefix=prefix,
+                timeout=timeout / _ATTEMPTS,
+                retries=_ATTEMPTS - 1,
+                zenoh_config=None if zenoh_config is None else str(zenoh_config),
+                mode=mode,
+            )
         except _core.ArenaError as error:
             code, message = error.args
+            if "Unable to connect" in message:
+                # A Zenoh client session needs its router at once; a peer does not.
+                raise ServerNotFoundError(
+                    "NoServer",
+                    f"nothing at {where} accepted a Zenoh session: is the router running and listening "
+                    "there, and does it ask for credentials (pass zenoh_config= a file with your user "
+                    "and password, see docs/deployment.md)?",
+                ) from None
             raise InvalidEndpointError(
                 "InvalidEndpoint",
                 f"cannot open a Zenoh session to {where}: {clean(message)}; "
@@ -141,8 +165,10 @@ class ParallelEnv(_ParallelEnv):
     ``.inexact``), ``seed`` (used by
     the first ``reset()`` that is given none, for reproducible runs), ``timeout`` (the
     seconds any one call may wait for the server, retries included; default 10),
-    ``connect_timeout`` (the seconds to wait for a server to appear; default 1), and scenario
-    overrides as keyword arguments with dots written as double underscores
+    ``connect_timeout`` (the seconds to wait for a server to appear; default 1),
+    ``zenoh_config`` (a Zenoh JSON5 file: credentials and TLS for a deployment with access
+    control, see docs/deployment.md), ``mode`` (the Zenoh session mode: 'client' through a
+    router; default 'peer', or the config file's), and scenario overrides as keyword arguments with dots written as double underscores
     (``vehicle__ac__speed=18.0``) or in ``overrides={"vehicle.ac.speed": 18.0}``."""
 
     metadata = {"render_modes": list(RENDER_MODES), "is_parallelizable": True}
@@ -163,6 +189,8 @@ class ParallelEnv(_ParallelEnv):
         prefix=DEFAULT_PREFIX,
         timeout=DEFAULT_TIMEOUT,
         connect_timeout=DEFAULT_CONNECT_TIMEOUT,
+        zenoh_config=None,
+        mode=None,
         render_size=None,
         seed=None,
         **dotted,
@@ -173,7 +201,7 @@ class ParallelEnv(_ParallelEnv):
             raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, not {render_mode!r}")
         all_overrides = dict(overrides or {})
         all_overrides.update({key.replace("__", "."): value for key, value in dotted.items()})
-        self._connection = Connection(connect, prefix, timeout, connect_timeout)
+        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode)
         try:
             self._env = self._connection.create(
                 scenario,

@@ -36,6 +36,8 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         prefix=DEFAULT_PREFIX,
         timeout=DEFAULT_TIMEOUT,
         connect_timeout=DEFAULT_CONNECT_TIMEOUT,
+        zenoh_config=None,
+        mode=None,
         scenario_text=None,
         overrides=None,
         autoreset_mode=AutoresetMode.NEXT_STEP,
@@ -48,7 +50,7 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
         self.num_envs = int(num_envs)
-        self._connection = Connection(connect, prefix, timeout, connect_timeout)
+        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode)
         self._envs = []
         try:
             overrides = dict(overrides or {})

@@ -46,8 +46,12 @@ fn connect(
     use anyhow::Context;
     use arena_protocol::session::{DEFAULT_CONNECT_TIMEOUT, Role};
     let where_ = flags.endpoints(Role::Client).join(", ");
-    let client = arena_client::blocking::Client::connect(flags)
-        .with_context(|| format!("cannot open a Zenoh session to {where_}"))?;
+    let client = arena_client::blocking::Client::connect(flags).with_context(|| {
+        format!(
+            "cannot open a Zenoh session to {where_}: is the router running and listening there, and does \
+             it ask for credentials (--zenoh-config a file with your user and password, docs/deployment.md)?"
+        )
+    })?;
     let server =
         client.pick_server_within(std::time::Duration::from_secs_f64(DEFAULT_CONNECT_TIMEOUT)).with_context(|| {
             format!(

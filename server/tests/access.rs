@@ -1,0 +1,120 @@
+//! The authenticated deployment of deploy/auth/, as separate processes on loopback: a
+//! router with user/password authentication and an access-control list, an arena-server
+//! logged in as a server, and clients. Shows that a client without credentials is
+//! refused, one with them is served, and one that tries to pose as a server (declare a
+//! server's queryable or liveliness token) reaches nobody.
+
+mod common;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Duration;
+
+use arena_client::{Client, CreateOptions, ScenarioSource};
+use arena_protocol::keys;
+use arena_protocol::session::{ConnectionFlags, Mode, Role};
+use common::{Process, free_port, repo_root};
+
+fn deploy_file(name: &str) -> PathBuf {
+    repo_root().join("deploy/auth").join(name)
+}
+
+/// A client of the deployment, logged in as `config` says (None: no credentials).
+fn flags(router: &str, config: Option<PathBuf>) -> ConnectionFlags {
+    ConnectionFlags {
+        mode: Some(Mode::Client),
+        zenoh_config: config,
+        timeout: 3.0,
+        retries: 1,
+        ..ConnectionFlags::connecting_to(router)
+    }
+}
+
+/// `client.json5` as written, with alice's login swapped for another one.
+fn client_config_as(user: &str, password: &str) -> PathBuf {
+    let text = std::fs::read_to_string(deploy_file("client.json5")).expect("deploy/auth/client.json5");
+    let text = text.replace("\"alice\"", &format!("{user:?}")).replace("\"change-me-alice\"", &format!("{password:?}"));
+    let path = std::env::temp_dir().join(format!("arena-client-{user}-{}.json5", std::process::id()));
+    std::fs::write(&path, text).expect("write a client config");
+    path
+}
+
+struct Deployment {
+    router: String,
+    server_id: String,
+    _processes: (Process, Process),
+}
+
+fn deploy() -> Deployment {
+    let router = format!("tcp/127.0.0.1:{}", free_port());
+    let router_process = Process::start(&[
+        "--mode",
+        "router",
+        "--route-only",
+        "--zenoh-config",
+        "deploy/auth/router.json5",
+        "--listen",
+        &router,
+    ]);
+    assert!(router_process.banner.contains("routing only"), "{}", router_process.banner);
+    let server =
+        Process::start(&["--mode", "client", "--connect", &router, "--zenoh-config", "deploy/auth/server.json5"]);
+    assert!(server.banner.contains(&format!("serving through {router}")), "{}", server.banner);
+    Deployment { router, server_id: server.server_id(), _processes: (router_process, server) }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn only_authenticated_users_are_served_and_no_client_can_pose_as_a_server() {
+    let deployment = deploy();
+
+    // No credentials, or a wrong password: the router refuses the session.
+    let anonymous = Client::connect(&flags(&deployment.router, None)).await;
+    assert!(anonymous.is_err(), "a client without credentials got a session");
+    let wrong = client_config_as("alice", "not-her-password");
+    let impostor = Client::connect(&flags(&deployment.router, Some(wrong.clone()))).await;
+    std::fs::remove_file(wrong).ok();
+    assert!(impostor.is_err(), "a client with a wrong password got a session");
+
+    // bob, a named user, tries to serve: a queryable on the server's request key that
+    // answers with a forged reply, and a liveliness token of a server of his own.
+    let bob_config = client_config_as("bob", "change-me-bob");
+    let bob = zenoh::open(flags(&deployment.router, Some(bob_config.clone())).zenoh_config(Role::Client).unwrap())
+        .await
+        .expect("bob logs in");
+    std::fs::remove_file(bob_config).ok();
+    let asked_bob = Arc::new(AtomicUsize::new(0));
+    let counter = Arc::clone(&asked_bob);
+    let _fake_queryable = bob
+        .declare_queryable(keys::server_rpc("arena", &deployment.server_id).unwrap())
+        .callback(move |query| {
+            counter.fetch_add(1, Ordering::SeqCst);
+            let _ = zenoh::Wait::wait(query.reply(query.key_expr().clone(), b"forged".to_vec()));
+        })
+        .await
+        .unwrap();
+    let _fake_token = bob.liveliness().declare_token(keys::server_liveliness("arena", "bobs").unwrap()).await.unwrap();
+
+    // alice is served, by the real server only.
+    let alice = Client::connect(&flags(&deployment.router, Some(deploy_file("client.json5")))).await.expect("alice");
+    alice.pick_server().await.expect("alice finds a server");
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert_eq!(
+        alice.servers().await.unwrap(),
+        std::slice::from_ref(&deployment.server_id),
+        "bob's token must not be seen"
+    );
+    let mut env = alice
+        .create_env(&deployment.server_id, ScenarioSource::Named("merge".into()), CreateOptions::default())
+        .await
+        .expect("alice creates an env");
+    env.reset(Some(0), vec![]).await.expect("reset");
+    for _ in 0..5 {
+        assert!(env.step(vec![]).await.is_ok());
+    }
+    let info = alice.server_info(&deployment.server_id).await.expect("server info");
+    assert_eq!(info.server_id, deployment.server_id);
+    assert_eq!(asked_bob.load(Ordering::SeqCst), 0, "a request reached bob's queryable");
+    alice.close().await.unwrap();
+    bob.close().await.unwrap();
+}

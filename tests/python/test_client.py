@@ -318,3 +318,35 @@ def test_a_deployment_with_credentials_serves_only_who_logs_in():
     finally:
         for process in processes:
             _stop(process)
+
+
+def test_a_vector_env_through_a_router_spreads_over_every_server_with_the_same_results():
+    router = f"tcp/127.0.0.1:{_free_port()}"
+    processes = [_start(["--mode", "router", "--route-only", "--listen", router], "routing only")]
+    try:
+        for _ in range(3):
+            processes.append(_start(["--mode", "client", "--connect", router], "serving through"))
+        spread = highway_arena.vector_env("merge-random", num_envs=6, connect=router, mode="client", connect_timeout=5.0)
+        assert len(set(spread.servers)) == 3, spread.servers
+        assert sorted(spread.servers.count(s) for s in set(spread.servers)) == [2, 2, 2]
+        local = highway_arena.vector_env("merge-random", num_envs=6)
+        assert len(set(local.servers)) == 1
+        seeds = list(range(10, 16))
+        for env in (spread, local):
+            env.action_space.seed(3)
+        a, _ = spread.reset(seed=seeds)
+        b, _ = local.reset(seed=seeds)
+        np.testing.assert_array_equal(a, b)
+        for _ in range(20):
+            actions = spread.action_space.sample()
+            a, ra, ta, ua, _ = spread.step(actions)
+            b, rb, tb, ub, _ = local.step(actions)
+            np.testing.assert_array_equal(a, b)
+            np.testing.assert_array_equal(ra, rb)
+            np.testing.assert_array_equal(ta, tb)
+            np.testing.assert_array_equal(ua, ub)
+        spread.close()
+        local.close()
+    finally:
+        for process in processes:
+            _stop(process)

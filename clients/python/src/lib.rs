@@ -90,7 +90,12 @@ impl Client {
         py.detach(|| self.inner.servers()).map_err(to_py_err)
     }
 
-    /// The first server found, waiting up to the timeout for one.
+    /// Servers for `count` new envs, spread by load (fewest envs per core first; see
+    /// `arena_client::placement`).
+    fn place(&self, py: Python<'_>, count: usize) -> PyResult<Vec<String>> {
+        py.detach(|| self.inner.place(count)).map_err(to_py_err)
+    }
+
     /// The first server found, waiting up to `wait` seconds (default: the timeout).
     #[pyo3(signature = (wait = None))]
     fn pick_server(&self, py: Python<'_>, wait: Option<f64>) -> PyResult<String> {
@@ -160,7 +165,7 @@ impl Client {
         let options =
             CreateOptions { overrides, action_type, observation, max_cycles, render_size, expert, policy, diagnostics };
         let env = py.detach(|| self.inner.create_env(&server, source, options)).map_err(to_py_err)?;
-        Ok(Env { specs: env.specs().clone(), inner: Mutex::new(Some(env)) })
+        Ok(Env { specs: env.specs().clone(), server: env.server().to_string(), inner: Mutex::new(Some(env)) })
     }
 
     /// Steps many envs of this client in one round trip; returns, per env, a step result
@@ -414,6 +419,8 @@ fn step_tuple(py: Python<'_>, reply: StepReply) -> PyResult<Bound<'_, PyTuple>> 
 struct Env {
     /// As the server described the env at creation (read without the lock).
     specs: EnvSpecs,
+    /// The id of the server it lives on, for its life.
+    server: String,
     /// `None` once closed. Locked only with the GIL released: a thread waiting for the
     /// lock never holds the GIL, and the thread holding it never waits for the GIL.
     inner: Mutex<Option<BlockingEnv>>,
@@ -431,6 +438,12 @@ impl Env {
 
 #[pymethods]
 impl Env {
+    /// The id of the server it lives on.
+    #[getter]
+    fn server(&self) -> String {
+        self.server.clone()
+    }
+
     /// possible_agents, spaces (as dicts), dt, max_cycles, render_fps.
     fn specs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let specs = &self.specs;

@@ -61,6 +61,16 @@ impl Client {
         self.block_on(self.inner.server_info(server))
     }
 
+    /// See `crate::Client::place`.
+    pub fn place(&self, count: usize) -> Result<Vec<String>> {
+        self.block_on(self.inner.place(count))
+    }
+
+    /// See `crate::Client::server_infos`.
+    pub fn server_infos(&self) -> Result<Vec<ServerInfo>> {
+        self.block_on(self.inner.server_infos())
+    }
+
     /// See `crate::Client::create_env`.
     pub fn create_env(&self, server: &str, scenario: ScenarioSource, options: CreateOptions) -> Result<Env> {
         let env = self.block_on(self.inner.create_env(server, scenario, options))?;
@@ -91,6 +101,11 @@ pub struct Env {
 }
 
 impl Env {
+    /// See `crate::RemoteEnv::server`.
+    pub fn server(&self) -> &str {
+        self.env.server()
+    }
+
     /// See `crate::RemoteEnv::specs`.
     pub fn specs(&self) -> &EnvSpecs {
         self.env.specs()

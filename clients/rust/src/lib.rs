@@ -24,6 +24,7 @@
 
 pub mod blocking;
 pub mod eval;
+pub mod placement;
 
 use std::fmt;
 use std::sync::Arc;
@@ -229,38 +230,98 @@ impl Client {
         }
     }
 
-    /// Steps many envs of this client on one server in one round trip. Actions are
-    /// given per env, in the order of `envs`; each env's result is its own.
+    /// Steps many envs of this client: one round trip per server, the servers' batches
+    /// sent at once. Actions are given per env, in the order of `envs`; each env's result
+    /// is its own (an env whose server is gone gets that error, the others step on).
     pub async fn step_batch(
         &self,
         envs: &mut [&mut RemoteEnv],
         actions: Vec<Vec<(String, Action)>>,
     ) -> Result<Vec<Result<StepReply>>> {
-        let Some(server) = envs.first().map(|e| e.server.clone()) else { return Ok(Vec::new()) };
-        if envs.iter().any(|e| e.server != server) {
-            return Err(ClientError::Protocol("a batch must hold envs of one server".into()));
-        }
         if actions.len() != envs.len() {
             return Err(ClientError::Protocol(format!("{} envs but {} action sets", envs.len(), actions.len())));
         }
-        let steps = envs
-            .iter_mut()
-            .zip(actions)
-            .map(|(env, actions)| {
-                env.seq += 1;
-                BatchStep { env: env.id, seq: env.seq, actions }
-            })
-            .collect();
-        match self.call(&server, RequestBody::StepBatch { steps }, true).await? {
-            ReplyBody::StepBatch(items) => Ok(items
+        // Envs grouped by server, each group in the order of `envs`.
+        let mut groups: Vec<(String, Vec<usize>, Vec<BatchStep>)> = Vec::new();
+        for (i, (env, actions)) in envs.iter_mut().zip(actions).enumerate() {
+            env.seq += 1;
+            let step = BatchStep { env: env.id, seq: env.seq, actions };
+            match groups.iter_mut().find(|(server, ..)| *server == env.server) {
+                Some((_, members, steps)) => {
+                    members.push(i);
+                    steps.push(step);
+                }
+                None => groups.push((env.server.clone(), vec![i], vec![step])),
+            }
+        }
+        let mut results: Vec<Option<Result<StepReply>>> = envs.iter().map(|_| None).collect();
+        let mut pending = tokio::task::JoinSet::new();
+        let last = groups.pop();
+        for (server, members, steps) in groups {
+            let client = self.clone();
+            pending.spawn(async move { (members, client.step_batch_on(&server, steps).await) });
+        }
+        // The last group (the only one, usually) is stepped here, without a task.
+        if let Some((server, members, steps)) = last {
+            scatter(&mut results, members, self.step_batch_on(&server, steps).await);
+        }
+        while let Some(done) = pending.join_next().await {
+            let (members, outcome) = done.map_err(|e| ClientError::Protocol(format!("a batch task failed: {e}")))?;
+            scatter(&mut results, members, outcome);
+        }
+        Ok(results.into_iter().map(|result| result.expect("every env is in one group")).collect())
+    }
+
+    /// One `StepBatch` round trip to `server`.
+    async fn step_batch_on(&self, server: &str, steps: Vec<BatchStep>) -> Result<Vec<Result<StepReply>>> {
+        let expected = steps.len();
+        match self.call(server, RequestBody::StepBatch { steps }, true).await? {
+            ReplyBody::StepBatch(items) if items.len() == expected => Ok(items
                 .into_iter()
                 .map(|item| match item {
                     BatchItem::Ok(reply) => Ok(reply),
                     BatchItem::Err(err) => Err(ClientError::Server(err)),
                 })
                 .collect()),
+            ReplyBody::StepBatch(items) => {
+                Err(ClientError::Protocol(format!("{expected} envs stepped but {} results came back", items.len())))
+            }
             other => Err(unexpected("StepBatch", &other)),
         }
+    }
+
+    /// Every server alive and what it reports of itself (load included); a server that
+    /// does not answer is left out.
+    pub async fn server_infos(&self) -> Result<Vec<ServerInfo>> {
+        let mut pending = tokio::task::JoinSet::new();
+        for server in self.servers().await? {
+            let client = self.clone();
+            pending.spawn(async move { client.server_info(&server).await });
+        }
+        let mut infos = Vec::new();
+        while let Some(done) = pending.join_next().await {
+            if let Ok(Ok(info)) = done {
+                infos.push(info);
+            }
+        }
+        infos.sort_by(|a, b| a.server_id.cmp(&b.server_id));
+        Ok(infos)
+    }
+
+    /// Where to create `count` new envs: each on the server with the fewest envs per
+    /// core at that point (counting the ones placed before it), ties to the fewest envs,
+    /// then the lowest id. Waits up to the timeout for a first server.
+    pub async fn place(&self, count: usize) -> Result<Vec<String>> {
+        let deadline = Instant::now() + self.inner.timeout;
+        let mut infos = self.server_infos().await?;
+        while infos.is_empty() {
+            if Instant::now() >= deadline {
+                return Err(ClientError::NoServer { prefix: self.inner.prefix.clone() });
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+            infos = self.server_infos().await?;
+        }
+        Ok(placement::spread(&infos, count))
     }
 
     /// Sends `body` to `server` and waits for its reply; with `retry`, resends the same
@@ -346,6 +407,14 @@ impl Client {
             return Ok(());
         }
         self.inner.session.close().await.map_err(zenoh_error)
+    }
+}
+
+/// Puts a server's batch outcome in the places of its envs.
+fn scatter(results: &mut [Option<Result<StepReply>>], members: Vec<usize>, outcome: Result<Vec<Result<StepReply>>>) {
+    match outcome {
+        Ok(replies) => members.into_iter().zip(replies).for_each(|(i, reply)| results[i] = Some(reply)),
+        Err(error) => members.into_iter().for_each(|i| results[i] = Some(Err(error.clone()))),
     }
 }
 

@@ -31,8 +31,8 @@ class BatchEnv:
         self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode)
         self._envs = []
         try:
-            for _ in range(num_envs):
-                self._envs.append(self._connection.create(scenario, **options))
+            for server in self._connection.place(num_envs):
+                self._envs.append(self._connection.create(scenario, server=server, **options))
             specs = self._envs[0].specs()
         except BaseException:
             self.close()
@@ -77,6 +77,12 @@ class BatchEnv:
             observations = {a: _convert.observation(o) for a, o in observations.items()}
             out.append((observations, rewards, terminations, truncations, infos))
         return out
+
+    @property
+    def servers(self):
+        """The id of the server each env lives on, in env order (envs are spread over every
+        server found, by load)."""
+        return [env.server for env in self._envs]
 
     def close(self):
         for env in self._envs:

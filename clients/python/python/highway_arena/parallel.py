@@ -129,7 +129,9 @@ class Connection:
                 f"write the endpoint as PROTOCOL/HOST:PORT, e.g. {DEFAULT_CONNECT}",
             ) from None
         try:
-            self.server = self.client.pick_server(wait=min(connect_timeout, timeout))
+            self.client.pick_server(wait=min(connect_timeout, timeout))
+            # Of every server found, the least loaded (see ``place``).
+            self.server = self.client.place(1)[0]
         except _core.ArenaError as error:
             self.client.close()
             code, message = error.args
@@ -143,9 +145,16 @@ class Connection:
             ) from None
 
     @translated
-    def create(self, scenario, scenario_text=None, overrides=None, **options):
+    def place(self, count):
+        """Servers for ``count`` new envs, spread over every server found by load (fewest
+        envs per core first): a vector env's envs land on all the servers of a site."""
+        return self.client.place(count)
+
+    @translated
+    def create(self, scenario, scenario_text=None, overrides=None, server=None, **options):
+        """An env on ``server`` (default: the one picked at connection)."""
         pairs = [(str(k), v) for k, v in (overrides or {}).items()]
-        return self.client.create_env(self.server, scenario, scenario_text, pairs, **options)
+        return self.client.create_env(server or self.server, scenario, scenario_text, pairs, **options)
 
     @translated
     def close(self):

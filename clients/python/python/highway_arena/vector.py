@@ -54,7 +54,9 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         self._envs = []
         try:
             overrides = dict(overrides or {})
-            probe = self._connection.create(scenario, scenario_text, overrides, **options)
+            # Spread over every server found, by load; each env stays where it lands.
+            servers = self._connection.place(self.num_envs)
+            probe = self._connection.create(scenario, scenario_text, overrides, server=servers[0], **options)
             learners = list(probe.specs()["possible_agents"])
             self.agent = agent if agent is not None else learners[0]
             if self.agent not in learners:
@@ -64,10 +66,10 @@ class VectorEnv(gymnasium.vector.VectorEnv):
             if others:
                 translated(probe.close)()
                 overrides.update({f"vehicle.{a}.driver": '{ kind = "idm" }' for a in others})
-                probe = self._connection.create(scenario, scenario_text, overrides, **options)
+                probe = self._connection.create(scenario, scenario_text, overrides, server=servers[0], **options)
             self._envs.append(probe)
-            for _ in range(self.num_envs - 1):
-                self._envs.append(self._connection.create(scenario, scenario_text, overrides, **options))
+            for server in servers[1:]:
+                self._envs.append(self._connection.create(scenario, scenario_text, overrides, server=server, **options))
             specs = probe.specs()
         except BaseException:
             self.close()
@@ -138,6 +140,12 @@ class VectorEnv(gymnasium.vector.VectorEnv):
 
     def _batch(self, observations):
         return concatenate(self.single_observation_space, observations, self._observations).copy()
+
+    @property
+    def servers(self):
+        """The id of the server each env lives on, in env order (envs are spread over every
+        server found, by load)."""
+        return [env.server for env in self._envs]
 
     def close_extras(self, **kwargs):
         for env in self._envs:

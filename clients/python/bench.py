@@ -23,8 +23,8 @@ import time
 import highway_arena
 
 
-def single(connect: str, scenario: str, seconds: float) -> float:
-    env = highway_arena.parallel_env(scenario, connect=connect)
+def single(where: dict, scenario: str, seconds: float) -> float:
+    env = highway_arena.parallel_env(scenario, **where)
     env.reset(seed=0)
     steps, episodes = 0, 0
     started = time.perf_counter()
@@ -49,8 +49,8 @@ def rounds_per_second(step, seconds: float) -> float:
     return rounds / (time.perf_counter() - started)
 
 
-def batched(connect: str, scenario: str, num_envs: int, seconds: float) -> float:
-    envs = highway_arena.batch_env(scenario, num_envs=num_envs, connect=connect)
+def batched(where: dict, scenario: str, num_envs: int, seconds: float) -> float:
+    envs = highway_arena.batch_env(scenario, num_envs=num_envs, **where)
     envs.reset(seed=0)
     actions = [{agent: 1 for agent in envs.possible_agents} for _ in range(num_envs)]
     rate = rounds_per_second(lambda: envs.step(actions), seconds)
@@ -58,8 +58,8 @@ def batched(connect: str, scenario: str, num_envs: int, seconds: float) -> float
     return rate * num_envs * envs.dt
 
 
-def vectorised(connect: str, scenario: str, num_envs: int, seconds: float) -> float:
-    envs = highway_arena.vector_env(scenario, num_envs=num_envs, connect=connect)
+def vectorised(where: dict, scenario: str, num_envs: int, seconds: float) -> float:
+    envs = highway_arena.vector_env(scenario, num_envs=num_envs, **where)
     envs.reset(seed=0)
     actions = [1] * num_envs
     rate = rounds_per_second(lambda: envs.step(actions), seconds)
@@ -82,7 +82,13 @@ def envpool_rate(num_envs: int, threads: int, seconds: float) -> float:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--connect", help="endpoint of a running arena-server (default: launch one)")
+    parser.add_argument("--connect", help="endpoint of a running arena-server or router (default: launch one)")
+    parser.add_argument(
+        "--mode",
+        choices=["peer", "client"],
+        default="peer",
+        help="Zenoh session mode: 'client' through a router, where envs spread over every server (default peer)",
+    )
     parser.add_argument("--binary", help="arena-server binary to launch (default: found as launch_server finds it)")
     parser.add_argument("--seconds", type=float, default=5.0, help="wall seconds per measurement (default 5)")
     parser.add_argument(
@@ -103,14 +109,15 @@ def main() -> int:
             parser.error("--vs-envpool needs EnvPool in this Python: pip install envpool")
 
     def run(connect: str) -> dict:
+        where = {"connect": connect, "mode": args.mode}
         figures = {"single_sim_s_per_s": None, "batch": {}, "vector": {}}
         print("one env through the PettingZoo API ...", file=sys.stderr)
-        figures["single_sim_s_per_s"] = single(connect, args.scenario, args.seconds)
+        figures["single_sim_s_per_s"] = single(where, args.scenario, args.seconds)
         for size in sizes:
             print(f"batch of {size} envs ...", file=sys.stderr)
-            figures["batch"][str(size)] = batched(connect, args.scenario, size, args.seconds)
+            figures["batch"][str(size)] = batched(where, args.scenario, size, args.seconds)
             print(f"vector env of {size} envs ...", file=sys.stderr)
-            figures["vector"][str(size)] = vectorised(connect, args.scenario, size, args.seconds)
+            figures["vector"][str(size)] = vectorised(where, args.scenario, size, args.seconds)
         if args.vs_envpool:
             figures["envpool"] = {"1 (1 thread)": envpool_rate(1, 1, args.seconds)}
             for size in sizes:

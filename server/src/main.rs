@@ -45,7 +45,19 @@ macro_rules! say {
     }};
 }
 
+/// At most two malloc arenas (glibc): Zenoh starts a thread per connecting client for a
+/// while, and glibc would give each its own arena and keep it for good, so the server
+/// would grow with every burst of clients. Must run before any thread starts.
+fn limit_malloc_arenas() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets an allocator option; called before other threads exist.
+    unsafe {
+        libc::mallopt(libc::M_ARENA_MAX, 2);
+    }
+}
+
 fn main() -> anyhow::Result<()> {
+    limit_malloc_arenas();
     let args = Args::parse();
     if !(args.idle_timeout.is_finite() && args.idle_timeout > 0.0) {
         anyhow::bail!("--idle-timeout must be a positive number of seconds, not {}", args.idle_timeout);

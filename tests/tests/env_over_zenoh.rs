@@ -5,7 +5,9 @@ mod common;
 
 use arena_client::{Action, ClientError, CreateOptions, ErrorCode, OptionValue, ScenarioSource};
 use arena_protocol::session::{ConnectionFlags, Mode, Role};
-use arena_protocol::{ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys};
+use arena_protocol::{
+    BatchStep, ClientId, EnvId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys,
+};
 use zenoh::Wait;
 
 fn code(result: Result<impl std::fmt::Debug, ClientError>) -> ErrorCode {
@@ -404,4 +406,118 @@ async fn one_client_cannot_take_a_shared_server() {
     first.close().await.unwrap();
     assert!(greedy.create_env(server, merge(), CreateOptions::default()).await.is_ok(), "a closed env frees its place");
     assert_eq!(harness.server.registry().len(), 3);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn more_kinds_of_bad_input_each_get_their_code_and_the_env_keeps_working() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let server = harness.server.id();
+    let create = |options: CreateOptions| client.create_env(server, ScenarioSource::Named("merge".into()), options);
+    let inline = |text: &str| {
+        client.create_env(
+            server,
+            ScenarioSource::Inline { file_name: "mine.toml".into(), text: text.into() },
+            CreateOptions::default(),
+        )
+    };
+    let merge = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/merge.toml")).unwrap();
+
+    // 19-20: nothing at all, and a request of an older protocol.
+    assert_eq!(raw_code(&raw(&harness, b"").await), ErrorCode::MalformedRequest);
+    let old = encode(&Request { version: PROTOCOL_VERSION - 1, client: client.id(), body: RequestBody::ServerInfo });
+    assert_eq!(raw_code(&raw(&harness, &old).await), ErrorCode::WrongVersion);
+
+    // 21-25: creation options out of range.
+    let sized = |size| CreateOptions { render_size: Some(size), ..Default::default() };
+    assert_eq!(code(create(sized((8, 600))).await), ErrorCode::InvalidScenario, "render size below 16");
+    assert_eq!(code(create(sized((4096, 4096))).await), ErrorCode::InvalidScenario, "frames too big for a reply");
+    let no_cycles = CreateOptions { max_cycles: Some(0), ..Default::default() };
+    assert_eq!(code(create(no_cycles).await), ErrorCode::InvalidScenario);
+    let wrong_type = CreateOptions {
+        overrides: vec![("vehicle.ac.speed".into(), OptionValue::Str("fast".into()))],
+        ..Default::default()
+    };
+    assert_eq!(code(create(wrong_type).await), ErrorCode::InvalidScenario);
+    let no_such_key =
+        CreateOptions { overrides: vec![("vehicle.ac.wings".into(), OptionValue::Int(2))], ..Default::default() };
+    assert_eq!(code(create(no_such_key).await), ErrorCode::InvalidScenario);
+
+    // 26-29: inline scenario files with each kind of error, each named in the message.
+    for (what, text) in [
+        ("TOML syntax", "name = \"x\"\n[road\n".to_string()),
+        ("unknown key", merge.replace("[road]", "[road]\nbanking = 3.0")),
+        ("overlapping vehicles", merge.replace("lane = 1\ns = 52.0", "lane = 0\ns = 52.0")),
+        ("no learner", merge.replace("kind = \"agent\"", "kind = \"idm\"")),
+    ] {
+        match inline(&text).await {
+            Err(ClientError::Server(e)) => {
+                assert_eq!(e.code, ErrorCode::InvalidScenario, "{what}: {e}");
+                assert!(e.message.contains("mine.toml") || e.message.contains("learner"), "{what}: {e}");
+            }
+            other => panic!("{what}: {other:?}"),
+        }
+    }
+
+    let mut env = create(CreateOptions::default()).await.expect("a good env");
+    env.reset(Some(1), vec![]).await.unwrap();
+
+    // 30-31: reset options that do not exist, or change who learns.
+    let unknown_option = vec![("speed".into(), OptionValue::Float(3.0))];
+    assert_eq!(code(env.reset(Some(1), unknown_option).await), ErrorCode::InvalidOption);
+    let bad_override = vec![("overrides.vehicle.ec_0.lane".into(), OptionValue::Int(40))];
+    assert_eq!(code(env.reset(Some(1), bad_override).await), ErrorCode::InvalidScenario);
+    env.reset(Some(1), vec![]).await.unwrap();
+
+    // 32-33: the same agent twice in a step; an infinite continuous action on a meta env.
+    let twice = vec![("ec_0".into(), Action::Meta(1)), ("ec_0".into(), Action::Meta(2))];
+    assert_eq!(code(env.step(twice).await), ErrorCode::InvalidAction);
+    let infinite = vec![("ec_0".into(), Action::Continuous([f32::INFINITY, 0.0]))];
+    assert_eq!(code(env.step(infinite).await), ErrorCode::WrongActionType);
+
+    // 34-35: a batch naming one env twice, and a batch longer than a client may hold.
+    let twin = BatchStep { env: env.id(), seq: 90, actions: vec![] };
+    let body = RequestBody::StepBatch { steps: vec![twin.clone(), BatchStep { seq: 91, ..twin.clone() }] };
+    let reply = raw(&harness, &encode(&Request { version: PROTOCOL_VERSION, client: client.id(), body })).await;
+    assert_eq!(raw_code(&reply), ErrorCode::MalformedRequest);
+    let huge = (0..300u64).map(|k| BatchStep { env: EnvId(u128::from(k)), seq: 1, actions: vec![] }).collect();
+    let reply = raw(
+        &harness,
+        &encode(&Request {
+            version: PROTOCOL_VERSION,
+            client: client.id(),
+            body: RequestBody::StepBatch { steps: huge },
+        }),
+    )
+    .await;
+    assert_eq!(raw_code(&reply), ErrorCode::MalformedRequest);
+
+    // 36: an unknown render mode (a variant index no RenderMode has).
+    let render = encode(&Request {
+        version: PROTOCOL_VERSION,
+        client: client.id(),
+        body: RequestBody::Render { env: env.id(), mode: arena_protocol::RenderMode::Ansi },
+    });
+    let mut unknown_mode = render.clone();
+    *unknown_mode.last_mut().unwrap() = 7;
+    assert_eq!(raw_code(&raw(&harness, &unknown_mode).await), ErrorCode::MalformedRequest);
+
+    // 37: an action for an agent that has finished (crashes into the lane's end or merges).
+    let mut finished = false;
+    for _ in 0..400 {
+        let step = env.step(meta("ec_0", 0)).await.unwrap();
+        if step.agents.is_empty() {
+            finished = true;
+            break;
+        }
+    }
+    assert!(finished, "the episode ended");
+    assert_eq!(code(env.step(meta("ec_0", 1)).await), ErrorCode::AgentNotLive);
+
+    // 38: a future sequence number is not an error (a request that timed out may never
+    // have arrived), and every refused request above left the env usable.
+    env.reset(Some(1), vec![]).await.unwrap();
+    let ahead = env.step_with_seq(10_000, meta("ec_0", 1)).await.expect("a later sequence number is served");
+    assert_eq!(ahead.seq, 10_000);
+    assert!(matches!(raw(&harness, &render).await.body, ReplyBody::Render(_)), "the env still renders");
 }

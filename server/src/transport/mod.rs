@@ -132,13 +132,15 @@ impl Server {
             .await?;
 
         let sweeper_registry = Arc::clone(&registry);
-        let period = (limits.idle_timeout / 4).clamp(Duration::from_millis(100), Duration::from_secs(30));
+        // Every few seconds at most: Zenoh's idle connection threads exit about 10 s after
+        // a burst of clients, and the memory they freed is handed back on the next sweep.
+        let period = (limits.idle_timeout / 4).clamp(Duration::from_millis(100), Duration::from_secs(5));
         let sweeper = tokio::spawn(async move {
             loop {
                 tokio::time::sleep(period).await;
                 let closed = sweeper_registry.reclaim_idle(Instant::now());
+                return_freed_memory();
                 if closed > 0 {
-                    return_freed_memory();
                     eprintln!("arena-server: closed {closed} idle env(s)");
                 }
             }

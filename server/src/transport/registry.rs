@@ -223,7 +223,10 @@ impl Registry {
             }),
             RequestBody::Step { env, seq, actions } => self
                 .sequenced(client, env, seq, |slot| self.step_reply(&mut slot.env, seq, &actions).map(ReplyBody::Step)),
-            RequestBody::StepBatch { steps } => Ok(ReplyBody::StepBatch(self.step_batch(client, &steps))),
+            RequestBody::StepBatch { steps } => {
+                self.check_batch(&steps)?;
+                Ok(ReplyBody::StepBatch(self.step_batch(client, &steps)))
+            }
             RequestBody::Render { env, mode } => {
                 self.with_env(client, env, |slot| slot.env.render(mode).map(ReplyBody::Render))
             }
@@ -380,6 +383,32 @@ impl Registry {
         let body = f(slot).unwrap_or_else(ReplyBody::Error);
         slot.last = Some((seq, body.clone()));
         Ok(body)
+    }
+
+    /// A batch names each env once and no more envs than one client may hold, so its
+    /// reply (one result per env) stays bounded whatever a request asks.
+    fn check_batch(&self, steps: &[BatchStep]) -> Result<(), ErrorReply> {
+        let most = self.limits.max_envs_per_client.min(self.limits.max_envs);
+        if steps.len() > most {
+            return Err(error(
+                ErrorCode::MalformedRequest,
+                format!(
+                    "a batch of {} steps is more than the {most} envs a client may hold on this server",
+                    steps.len()
+                ),
+                true,
+            ));
+        }
+        let mut envs: Vec<EnvId> = steps.iter().map(|step| step.env).collect();
+        envs.sort_unstable();
+        if let Some(pair) = envs.windows(2).find(|pair| pair[0] == pair[1]) {
+            return Err(error(
+                ErrorCode::MalformedRequest,
+                format!("env {} appears twice in one batch: step each env once per batch", pair[0]),
+                true,
+            ));
+        }
+        Ok(())
     }
 
     fn step_batch(&self, client: ClientId, steps: &[BatchStep]) -> Vec<BatchItem> {

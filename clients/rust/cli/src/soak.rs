@@ -28,6 +28,10 @@ pub struct SoakArgs {
     /// Scenario each client steps (an episode that ends is reset).
     #[arg(long, default_value = "merge-random")]
     scenario: String,
+    /// Seconds to wait after the clients leave before reading the server's memory "after"
+    /// (Zenoh's idle connection threads exit about 10 s after a burst of clients).
+    #[arg(long, default_value_t = 15.0, value_name = "SECONDS")]
+    settle: f64,
     /// Print the figures as one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -64,6 +68,10 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         args.clients
     );
     anyhow::ensure!(args.seconds.is_finite() && args.seconds > 0.0, "--seconds must be a positive number");
+    anyhow::ensure!(
+        args.settle.is_finite() && (0.0..=3600.0).contains(&args.settle),
+        "--settle must be between 0 and 3600 seconds"
+    );
     let runtime = tokio::runtime::Runtime::new().context("cannot start the tokio runtime")?;
     let figures = runtime.block_on(soak(&args))?;
     if args.json {
@@ -113,8 +121,9 @@ async fn soak(args: &SoakArgs) -> anyhow::Result<Figures> {
         runs.push(task.await.context("a client task")?);
     }
     bar.finish_and_clear();
-    // The server closes the envs of clients that closed; give it a moment to free them.
-    tokio::time::sleep(Duration::from_secs(1)).await;
+    // The server closes the envs of clients that closed and hands memory back once the
+    // connection threads have gone.
+    tokio::time::sleep(Duration::from_secs_f64(args.settle)).await;
     let after = watcher.server_info(&server).await?;
     watcher.close().await?;
     Ok(figures(args, &runs, &before, peak, &after))

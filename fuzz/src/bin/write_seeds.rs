@@ -1,0 +1,98 @@
+//! Writes the seed inputs of `decode_request` and `handle_request` into
+//! `fuzz/seeds/<target>`, so they follow the protocol (its version, its messages) rather
+//! than being bytes nobody can remake. Run from the repository root after any change to
+//! the protocol:
+//!
+//! ```sh
+//! cargo +nightly run --manifest-path fuzz/Cargo.toml --bin write_seeds
+//! ```
+//!
+//! `decode_request` gets one encoded request of every kind. `handle_request` gets each of
+//! them twice, in the target's two modes (its first byte): `raw-*` (0, the request as it
+//! arrives) and `live-*` (1, then the byte that picks a live env, then the request, which
+//! the target points at that env). Files of these names are replaced; others are left.
+
+use std::path::{Path, PathBuf};
+
+use arena_protocol::{
+    Action, BatchStep, ClientId, CreateOptions, EnvId, OptionValue, PROTOCOL_VERSION, RenderMode, Request, RequestBody,
+    ScenarioSource, encode,
+};
+
+/// The requests, by file name, and the live env `handle_request` should point each at
+/// (0 merge, 1 highway, 2 overtake with continuous actions: its `LIVE` table).
+fn requests() -> Vec<(&'static str, u8, Vec<u8>)> {
+    let request = |body| encode(&Request { version: PROTOCOL_VERSION, client: ClientId(7), body });
+    let env = EnvId(0);
+    vec![
+        ("server-info", 0, request(RequestBody::ServerInfo)),
+        (
+            "create-env-merge",
+            0,
+            request(RequestBody::CreateEnv {
+                scenario: ScenarioSource::Named("merge".into()),
+                options: CreateOptions::default(),
+            }),
+        ),
+        (
+            "reset",
+            0,
+            request(RequestBody::Reset {
+                env,
+                seq: 1,
+                seed: Some(4),
+                options: vec![("overrides.vehicle.ac.speed".into(), OptionValue::Float(18.0))],
+            }),
+        ),
+        ("step", 0, request(RequestBody::Step { env, seq: 1, actions: vec![("ec_0".into(), Action::Meta(3))] })),
+        (
+            "step-highway",
+            1,
+            request(RequestBody::Step { env, seq: 1, actions: vec![("ego_0".into(), Action::Meta(0))] }),
+        ),
+        (
+            "step-continuous",
+            2,
+            request(RequestBody::Step {
+                env,
+                seq: 1,
+                actions: vec![("ec_0".into(), Action::Continuous([0.5, -0.25]))],
+            }),
+        ),
+        (
+            // Env ids 0 and 1: the target adds each id to the picking byte, so this batch
+            // steps merge and highway together.
+            "step-batch",
+            0,
+            request(RequestBody::StepBatch {
+                steps: vec![
+                    BatchStep { env: EnvId(0), seq: 1, actions: vec![("ec_0".into(), Action::Meta(1))] },
+                    BatchStep { env: EnvId(1), seq: 1, actions: vec![("ego_0".into(), Action::Meta(4))] },
+                ],
+            }),
+        ),
+        ("render-ansi", 0, request(RequestBody::Render { env, mode: RenderMode::Ansi })),
+        ("render-rgb", 2, request(RequestBody::Render { env, mode: RenderMode::RgbArray })),
+        ("state", 0, request(RequestBody::State { env })),
+        ("specs", 0, request(RequestBody::Specs { env })),
+        ("close", 0, request(RequestBody::Close { env })),
+    ]
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) {
+    std::fs::create_dir_all(dir).unwrap_or_else(|e| panic!("cannot create {}: {e}", dir.display()));
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap_or_else(|e| panic!("cannot write {}: {e}", path.display()));
+}
+
+fn main() {
+    let seeds = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("seeds");
+    let mut count = 0;
+    for (name, live, bytes) in requests() {
+        write(&seeds.join("decode_request"), name, &bytes);
+        write(&seeds.join("handle_request"), &format!("raw-{name}"), &[&[0][..], &bytes].concat());
+        write(&seeds.join("handle_request"), &format!("live-{name}"), &[&[1, live][..], &bytes].concat());
+        count += 1;
+    }
+    println!("wrote {count} requests (protocol {PROTOCOL_VERSION}) to {}", seeds.display());
+}

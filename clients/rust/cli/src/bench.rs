@@ -42,6 +42,8 @@ pub struct BenchArgs {
 #[derive(Debug, Serialize)]
 struct BatchFigures {
     envs: usize,
+    /// How many servers the envs were spread over.
+    servers: usize,
     env_steps_per_s: f64,
     sim_seconds_per_s: f64,
 }
@@ -121,7 +123,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     let mut batch = Vec::new();
     for &size in &args.batches {
         progress(args.json, &format!("batch of {size} highway.toml envs for {} s", args.batch_seconds));
-        batch.push(measure_batch(&client, &server, size, args.batch_seconds)?);
+        batch.push(measure_batch(&client, size, args.batch_seconds)?);
     }
 
     let memory = measure_memory(&client, &server, &args.memory_envs, args.json)?;
@@ -147,8 +149,8 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         println!("ratio (p50)     {:.3}  (target <= 1.25)", figures.ratio_p50);
         for b in &figures.batch {
             println!(
-                "batch {:3} envs: {:9.1} env-steps/s, {:9.1} simulated s per wall s",
-                b.envs, b.env_steps_per_s, b.sim_seconds_per_s
+                "batch {:3} envs on {} server(s): {:9.1} env-steps/s, {:9.1} simulated s per wall s",
+                b.envs, b.servers, b.env_steps_per_s, b.sim_seconds_per_s
             );
         }
         for m in &figures.memory {
@@ -183,9 +185,11 @@ fn measure_memory(client: &Client, server: &str, counts: &[usize], json: bool) -
     Ok(figures)
 }
 
-fn measure_batch(client: &Client, server: &str, size: usize, seconds: f64) -> anyhow::Result<BatchFigures> {
+fn measure_batch(client: &Client, size: usize, seconds: f64) -> anyhow::Result<BatchFigures> {
     let mut envs: Vec<Env> = Vec::with_capacity(size);
-    for seed in 0..size {
+    // Spread over every server found (through a router, all of a site's), as a vector env does.
+    let mut servers = client.place(size)?;
+    for (seed, server) in servers.iter().enumerate() {
         let mut env = client.create_env(server, ScenarioSource::Named("highway".into()), CreateOptions::default())?;
         env.reset(Some(seed as u64), vec![])?;
         envs.push(env);
@@ -212,5 +216,7 @@ fn measure_batch(client: &Client, server: &str, size: usize, seconds: f64) -> an
         env.close()?;
     }
     let rate = stepped as f64 / elapsed;
-    Ok(BatchFigures { envs: size, env_steps_per_s: rate, sim_seconds_per_s: rate * dt })
+    servers.sort();
+    servers.dedup();
+    Ok(BatchFigures { envs: size, servers: servers.len(), env_steps_per_s: rate, sim_seconds_per_s: rate * dt })
 }

@@ -12,8 +12,8 @@ all runners spread over every server of the site (docs/deployment.md).
 
 Uses RLlib's own PettingZoo wrapper (ParallelPettingZooEnv) on highway_arena's
 ParallelEnv, RLlib's new API stack. Prints, per iteration, the env steps sampled, the
-mean episode return and the wall time, and at the end which server each runner's env
-lived on. Not part of the test command (Ray takes minutes to start and install).
+mean episode return and the wall time; each env runner says which server its env lives
+on. Not part of the test command (Ray is large to install and slow to start).
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ def main() -> None:
         runners = result.get("env_runners", {})
         steps = runners.get("num_env_steps_sampled_lifetime", float("nan"))
         returned = runners.get("episode_return_mean", float("nan"))
-        print(f"| {iteration} | {steps} | {returned:.2f} | {time.monotonic() - started:.0f} |", flush=True)
+        print(f"| {iteration} | {steps:.0f} | {returned:.2f} | {time.monotonic() - started:.0f} |", flush=True)
     algo.stop()
     ray.shutdown()
 

@@ -77,7 +77,18 @@ fn main() -> anyhow::Result<()> {
 
 async fn open_session(args: &Args) -> anyhow::Result<zenoh::Session> {
     let config = args.connection.zenoh_config(Role::Server).map_err(anyhow::Error::msg)?;
-    zenoh::open(config).await.map_err(|e| anyhow::anyhow!("cannot open the Zenoh session: {e}"))
+    zenoh::open(config).await.map_err(|e| {
+        let hint = if args.connection.connect.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " (connecting to {}: is the router running there, and does it ask for credentials, \
+                 --zenoh-config deploy/auth/server.json5?)",
+                args.connection.connect.join(", ")
+            )
+        };
+        anyhow::anyhow!("cannot open the Zenoh session{hint}: {e}")
+    })
 }
 
 /// Where the banner says the session is reachable: what it listens on, else what it
@@ -118,9 +129,20 @@ async fn serve(args: Args) -> anyhow::Result<()> {
     let endpoint = (args.connection.endpoints(Role::Server).into_iter().chain(args.connection.connect.iter().cloned()))
         .next()
         .unwrap_or_else(|| "ENDPOINT".to_string());
-    say!("  arena play --scenario merge --connect {endpoint}");
+    // Through a router (this server only connected), clients are Zenoh clients too; with
+    // a config file, they need one of their own (credentials).
+    let through_router = args.connection.endpoints(Role::Server).is_empty();
+    let (cli_extra, py_extra) = match (through_router, args.connection.zenoh_config.is_some()) {
+        (false, _) => (String::new(), String::new()),
+        (true, false) => (" --mode client".to_string(), ", mode='client'".to_string()),
+        (true, true) => (
+            " --mode client --zenoh-config CLIENT.json5".to_string(),
+            ", mode='client', zenoh_config='CLIENT.json5'".to_string(),
+        ),
+    };
+    say!("  arena play --scenario merge --connect {endpoint}{cli_extra}");
     say!(
-        "  python -c \"import highway_arena; env = highway_arena.parallel_env('merge', connect='{endpoint}'); print(env.reset(seed=0))\""
+        "  python -c \"import highway_arena; env = highway_arena.parallel_env('merge', connect='{endpoint}'{py_extra}); print(env.reset(seed=0))\""
     );
     say!("stop with Ctrl-C");
     shutdown_signal().await;

@@ -118,3 +118,76 @@ async fn only_authenticated_users_are_served_and_no_client_can_pose_as_a_server(
     alice.close().await.unwrap();
     bob.close().await.unwrap();
 }
+
+/// A throwaway certificate authority and a router certificate for localhost, as
+/// deploy/auth/make-certs.sh makes them, in `dir`: ca.pem, router.pem, router.key.
+fn make_certs(dir: &std::path::Path) {
+    use rcgen::{BasicConstraints, CertificateParams, IsCa, Issuer, KeyPair};
+    let mut ca = CertificateParams::new(Vec::<String>::new()).expect("CA params");
+    ca.is_ca = IsCa::Ca(BasicConstraints::Unconstrained);
+    let ca_key = KeyPair::generate().expect("CA key");
+    let ca_cert = ca.self_signed(&ca_key).expect("CA certificate");
+    let router = CertificateParams::new(vec!["localhost".to_string(), "127.0.0.1".to_string()]).expect("params");
+    let router_key = KeyPair::generate().expect("router key");
+    let router_cert = router.signed_by(&router_key, &Issuer::new(ca, ca_key)).expect("router certificate");
+    std::fs::create_dir_all(dir).expect("a certificate folder");
+    std::fs::write(dir.join("ca.pem"), ca_cert.pem()).expect("ca.pem");
+    std::fs::write(dir.join("router.pem"), router_cert.pem()).expect("router.pem");
+    std::fs::write(dir.join("router.key"), router_key.serialize_pem()).expect("router.key");
+}
+
+/// deploy/auth/`name` with its certificate paths pointed at `certs`, written beside them.
+fn with_certs(name: &str, certs: &std::path::Path) -> PathBuf {
+    let text = std::fs::read_to_string(deploy_file(name)).expect("a deploy/auth file");
+    let path = certs.join(name);
+    std::fs::write(&path, text.replace("deploy/auth/certs/", &format!("{}/", certs.display()))).expect("write");
+    path
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn over_tls_only_clients_that_trust_the_sites_authority_are_served() {
+    let certs = std::env::temp_dir().join(format!("arena-tls-{}", std::process::id()));
+    make_certs(&certs);
+    let (router_config, server_config, client_config) =
+        (with_certs("router.json5", &certs), with_certs("server.json5", &certs), with_certs("client.json5", &certs));
+    let port = free_port();
+    let router = Process::start(&[
+        "--mode",
+        "router",
+        "--route-only",
+        "--zenoh-config",
+        router_config.to_str().unwrap(),
+        "--listen",
+        &format!("tls/127.0.0.1:{port}"),
+    ]);
+    assert!(router.banner.contains("routing only"), "{}", router.banner);
+    let endpoint = format!("tls/localhost:{port}");
+    let server = Process::start(&[
+        "--mode",
+        "client",
+        "--connect",
+        &endpoint,
+        "--zenoh-config",
+        server_config.to_str().unwrap(),
+    ]);
+    assert!(server.banner.contains("serving through tls/"), "{}", server.banner);
+
+    let alice = Client::connect(&flags(&endpoint, Some(client_config))).await.expect("alice, over TLS");
+    let id = alice.pick_server().await.expect("a server");
+    assert_eq!(id, server.server_id());
+    let mut env = alice.create_env(&id, ScenarioSource::Named("merge".into()), CreateOptions::default()).await.unwrap();
+    env.reset(Some(0), vec![]).await.expect("reset over TLS");
+    assert!(env.step(vec![]).await.is_ok());
+    alice.close().await.unwrap();
+
+    // Her credentials without the site's authority: the router's certificate is not
+    // trusted, so no session.
+    let text = std::fs::read_to_string(deploy_file("client.json5")).unwrap();
+    let untrusting = certs.join("untrusting.json5");
+    std::fs::write(&untrusting, text.replace("root_ca_certificate: \"deploy/auth/certs/ca.pem\"", "")).unwrap();
+    let untrusting = flags(&endpoint, Some(untrusting));
+    assert!(untrusting.zenoh_config(Role::Client).is_ok(), "the config itself is fine");
+    assert!(Client::connect(&untrusting).await.is_err(), "a client that trusts no CA got in");
+    drop((router, server));
+    std::fs::remove_dir_all(&certs).ok();
+}

@@ -4,7 +4,9 @@
 //! reclaiming — so each can be tested without a network and the queryable stays thin.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, Ordering};
+
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -107,6 +109,11 @@ pub struct Registry {
     closed: Mutex<Tombstones>,
     /// Env steps taken, for `ServerInfo::steps`.
     steps: AtomicU64,
+    /// Steps the envs of a batch, one thread per core.
+    batch_workers: rayon::ThreadPool,
+    /// Single (non-batch) requests being answered now: batch workers give way to them
+    /// between envs, so a client's big batch does not hold up another client's step.
+    singles: AtomicUsize,
 }
 
 /// Ids of recently closed envs, so a late request gets `EnvClosed` rather than
@@ -143,6 +150,35 @@ fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
     mutex.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
+/// The longest a batch worker waits, before each env, for single requests to be answered.
+const GIVE_WAY_AT_MOST: Duration = Duration::from_millis(2);
+
+/// The batch pool: as many threads as cores.
+fn batch_workers() -> rayon::ThreadPool {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let built = rayon::ThreadPoolBuilder::new().num_threads(threads).thread_name(|i| format!("batch-{i}")).build();
+    // Building fails only when no thread can be started; then one thread, or none at all.
+    built.unwrap_or_else(|_| {
+        rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a thread pool of one thread")
+    })
+}
+
+/// Counts a single request as being answered for as long as it lives.
+struct Single<'a>(&'a AtomicUsize);
+
+impl<'a> Single<'a> {
+    fn begin(count: &'a AtomicUsize) -> Single<'a> {
+        count.fetch_add(1, Ordering::SeqCst);
+        Single(count)
+    }
+}
+
+impl Drop for Single<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
 fn error(code: ErrorCode, message: impl Into<String>, env_usable: bool) -> ErrorReply {
     ErrorReply { code, message: message.into(), env_usable }
 }
@@ -173,6 +209,8 @@ impl Registry {
             held: Mutex::new(HashMap::new()),
             closed: Mutex::new(Tombstones::default()),
             steps: AtomicU64::new(0),
+            batch_workers: batch_workers(),
+            singles: AtomicUsize::new(0),
         }
     }
 
@@ -208,6 +246,7 @@ impl Registry {
             return Err(wrong_version(request.version));
         }
         let client = request.client;
+        let _single = (!matches!(request.body, RequestBody::StepBatch { .. })).then(|| Single::begin(&self.singles));
         match request.body {
             RequestBody::ServerInfo => Ok(ReplyBody::ServerInfo(self.info())),
             RequestBody::CreateEnv { scenario, options } => self.create(client, scenario, &options),
@@ -411,6 +450,15 @@ impl Registry {
         Ok(())
     }
 
+    /// Sleeps while single requests are being answered (up to `GIVE_WAY_AT_MOST`), so
+    /// the cores go to them first.
+    fn give_way(&self) {
+        let started = Instant::now();
+        while self.singles.load(Ordering::SeqCst) > 0 && started.elapsed() < GIVE_WAY_AT_MOST {
+            std::thread::sleep(Duration::from_micros(50));
+        }
+    }
+
     fn step_batch(&self, client: ClientId, steps: &[BatchStep]) -> Vec<BatchItem> {
         let one = |step: &BatchStep| -> BatchItem {
             let body = self.sequenced(client, step.env, step.seq, |slot| {
@@ -427,25 +475,17 @@ impl Registry {
                 )),
             }
         };
-        let workers = std::thread::available_parallelism().map_or(1, |n| n.get()).min(steps.len().max(1));
-        if workers <= 1 || steps.len() < 4 {
-            return steps.iter().map(one).collect();
+        // A panic stepping one env is that env's error, not the whole batch's silence.
+        let guarded = |step: &BatchStep| {
+            self.give_way();
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| one(step))).unwrap_or_else(|_| {
+                BatchItem::Err(error(ErrorCode::Internal, "stepping this env panicked; this is a server bug", false))
+            })
+        };
+        if steps.len() < 4 || self.batch_workers.current_num_threads() <= 1 {
+            return steps.iter().map(guarded).collect();
         }
-        let chunk = steps.len().div_ceil(workers);
-        std::thread::scope(|scope| {
-            let handles: Vec<_> =
-                steps.chunks(chunk).map(|part| scope.spawn(move || part.iter().map(one).collect::<Vec<_>>())).collect();
-            handles
-                .into_iter()
-                .zip(steps.chunks(chunk))
-                .flat_map(|(handle, part)| {
-                    handle.join().unwrap_or_else(|_| {
-                        let bug = error(ErrorCode::Internal, "a batch worker panicked; this is a server bug", false);
-                        vec![BatchItem::Err(bug); part.len()]
-                    })
-                })
-                .collect()
-        })
+        self.batch_workers.install(|| steps.par_iter().map(guarded).collect())
     }
 
     fn close(&self, client: ClientId, env: EnvId) -> Result<ReplyBody, ErrorReply> {

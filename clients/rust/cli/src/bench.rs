@@ -4,9 +4,13 @@
 //! 1. Round trips on merge.toml (its adjacent car driven by IDM, so a world step costs
 //!    microseconds): a step, and a raw Zenoh get on the server's echo key with the same
 //!    request and reply sizes, interleaved so both see the same conditions.
-//! 2. Batched throughput on highway.toml for 1, 16 and 64 envs: env-steps per second
+//! 2. The same single steps while a second client steps a 64-env batch in a loop on the
+//!    same server: a big batch must not hold up another client's steps.
+//! 3. Batched throughput on highway.toml for 1, 16 and 64 envs: env-steps per second
 //!    and simulated seconds per wall second.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use arena_client::blocking::{Client, Env};
@@ -65,6 +69,11 @@ struct Figures {
     step_p50_us: f64,
     step_p99_us: f64,
     ratio_p50: f64,
+    /// Single steps while another client steps `LOAD_BATCH` envs in a loop.
+    loaded_step_p50_us: f64,
+    loaded_step_p99_us: f64,
+    /// loaded_step_p99_us / step_p99_us (target <= 2).
+    loaded_ratio_p99: f64,
     batch: Vec<BatchFigures>,
     memory: Vec<MemoryFigures>,
 }
@@ -116,9 +125,12 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             eprintln!("  {}/{}", k + 1, args.round_trips);
         }
     }
-    env.close()?;
     steps.sort();
     raws.sort();
+
+    progress(args.json, &format!("the same steps while another client steps {LOAD_BATCH} envs per batch in a loop"));
+    let loaded = steps_under_batch_load(&args, &server, &mut env, &actions)?;
+    env.close()?;
 
     let mut batch = Vec::new();
     for &size in &args.batches {
@@ -136,6 +148,9 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         step_p50_us: percentile(&steps, 0.5),
         step_p99_us: percentile(&steps, 0.99),
         ratio_p50: percentile(&steps, 0.5) / percentile(&raws, 0.5),
+        loaded_step_p50_us: percentile(&loaded, 0.5),
+        loaded_step_p99_us: percentile(&loaded, 0.99),
+        loaded_ratio_p99: percentile(&loaded, 0.99) / percentile(&steps, 0.99),
         batch,
         memory,
     };
@@ -147,6 +162,10 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         println!("raw Zenoh get   p50 {:8.1} us   p99 {:8.1} us", figures.raw_get_p50_us, figures.raw_get_p99_us);
         println!("step round trip p50 {:8.1} us   p99 {:8.1} us", figures.step_p50_us, figures.step_p99_us);
         println!("ratio (p50)     {:.3}  (target <= 1.25)", figures.ratio_p50);
+        println!(
+            "step beside a {LOAD_BATCH}-env batch loop: p50 {:8.1} us   p99 {:8.1} us   p99 ratio {:.2} (target <= 2)",
+            figures.loaded_step_p50_us, figures.loaded_step_p99_us, figures.loaded_ratio_p99
+        );
         for b in &figures.batch {
             println!(
                 "batch {:3} envs on {} server(s): {:9.1} env-steps/s, {:9.1} simulated s per wall s",
@@ -157,6 +176,76 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             println!("{:5} envs open: server RSS {:8.1} MiB, {:7.1} KiB per env", m.envs, m.rss_mib, m.kib_per_env);
         }
     }
+    Ok(())
+}
+
+/// Envs per batch of the concurrent load in `steps_under_batch_load`.
+const LOAD_BATCH: usize = 64;
+
+/// Single step round trips of `env` while a second client, on its own session, steps
+/// `LOAD_BATCH` highway.toml envs of the same server in a loop.
+fn steps_under_batch_load(
+    args: &BenchArgs,
+    server: &str,
+    env: &mut Env,
+    actions: &[(String, Action)],
+) -> anyhow::Result<Vec<Duration>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let (ready, started) = std::sync::mpsc::channel();
+    let load = {
+        let (stop, flags, server) = (Arc::clone(&stop), args.connection.clone(), server.to_string());
+        std::thread::spawn(move || batch_loop(&flags, &server, &stop, ready))
+    };
+    if started.recv().is_err() {
+        // The loop ended before its first batch: its error says why.
+        load.join().map_err(|_| anyhow::anyhow!("the batch loop panicked"))??;
+        anyhow::bail!("the batch loop stopped before stepping");
+    }
+    let mut times = Vec::with_capacity(args.round_trips);
+    for k in 0..args.round_trips {
+        let clock = Instant::now();
+        let reply = env.step(actions.to_vec())?;
+        times.push(clock.elapsed());
+        if reply.agents.is_empty() {
+            env.reset(Some(k as u64), vec![])?;
+        }
+    }
+    stop.store(true, Ordering::Relaxed);
+    load.join().map_err(|_| anyhow::anyhow!("the batch loop panicked"))??;
+    times.sort();
+    Ok(times)
+}
+
+/// Steps `LOAD_BATCH` envs per round trip until `stop`; says `ready` after the first.
+fn batch_loop(
+    flags: &ConnectionFlags,
+    server: &str,
+    stop: &AtomicBool,
+    ready: std::sync::mpsc::Sender<()>,
+) -> anyhow::Result<()> {
+    let (other, _) = crate::connect(flags)?;
+    let mut envs = Vec::with_capacity(LOAD_BATCH);
+    for seed in 0..LOAD_BATCH {
+        let mut env = other.create_env(server, ScenarioSource::Named("highway".into()), CreateOptions::default())?;
+        env.reset(Some(seed as u64), vec![])?;
+        envs.push(env);
+    }
+    let agent = envs[0].specs().possible_agents.first().cloned().unwrap_or_default();
+    while !stop.load(Ordering::Relaxed) {
+        let actions = (0..LOAD_BATCH).map(|_| vec![(agent.clone(), Action::Meta(META_IDLE))]).collect();
+        let mut handles: Vec<&mut Env> = envs.iter_mut().collect();
+        let results = other.step_batch(&mut handles, actions)?;
+        for (k, result) in results.into_iter().enumerate() {
+            if result?.agents.is_empty() {
+                envs[k].reset(None, vec![])?;
+            }
+        }
+        let _ = ready.send(());
+    }
+    for env in &mut envs {
+        env.close()?;
+    }
+    other.close()?;
     Ok(())
 }
 

@@ -109,6 +109,34 @@ impl Default for ConnectionFlags {
     }
 }
 
+/// Whether a config file names endpoints to connect to.
+fn file_connects(config: &zenoh::Config) -> bool {
+    config.get_json("connect/endpoints").is_ok_and(|json| json.contains('/'))
+}
+
+/// Access control for a server that is its clients' only meeting point (a peer, the
+/// default): no other session may declare a queryable under the prefix or a server's
+/// liveliness token, so nobody who connects can receive other clients' requests or pose
+/// as a server. (A router of a site gets its rules from deploy/auth/router.json5.)
+pub fn guard_server_keys(config: &mut zenoh::Config, prefix: &str) -> Result<(), String> {
+    crate::keys::check_prefix(prefix).map_err(|e| e.to_string())?;
+    let rules = format!(
+        r#"{{
+            enabled: true,
+            default_permission: "allow",
+            rules: [
+                {{ id: "no-other-queryables", permission: "deny", flows: ["ingress"],
+                   messages: ["declare_queryable"], key_exprs: ["{prefix}/**"] }},
+                {{ id: "no-other-servers", permission: "deny", flows: ["ingress"],
+                   messages: ["liveliness_token"], key_exprs: ["{prefix}/servers/**"] }},
+            ],
+            subjects: [{{ id: "every-session" }}],
+            policies: [{{ rules: ["no-other-queryables", "no-other-servers"], subjects: ["every-session"] }}],
+        }}"#
+    );
+    config.insert_json5("access_control", &rules).map_err(|e| format!("invalid access control: {e}"))
+}
+
 impl ConnectionFlags {
     /// Flags for a client connecting to `endpoint`.
     pub fn connecting_to(endpoint: &str) -> ConnectionFlags {
@@ -150,12 +178,14 @@ impl ConnectionFlags {
             return Err(format!("'{bad}' is not a Zenoh endpoint: write PROTOCOL/HOST:PORT, e.g. {DEFAULT_ENDPOINT}"));
         }
         let from_file = self.zenoh_config.is_some();
-        if listen.is_empty() && connect.is_empty() {
+        if !from_file && listen.is_empty() && connect.is_empty() {
             match role {
-                Role::Server if from_file => {}
                 Role::Server => listen.push(DEFAULT_ENDPOINT.to_string()),
                 Role::Client => connect.push(DEFAULT_ENDPOINT.to_string()),
             }
+        }
+        if from_file && role == Role::Client && connect.is_empty() && listen.is_empty() && !file_connects(&config) {
+            connect.push(DEFAULT_ENDPOINT.to_string());
         }
         let set = |config: &mut zenoh::Config, key: &str, value: String| {
             config.insert_json5(key, &value).map_err(|e| format!("invalid Zenoh setting {key} = {value}: {e}"))
@@ -169,8 +199,9 @@ impl ConnectionFlags {
         }
         // A process listens only where it is told: left to Zenoh, a peer listens on every
         // interface and clients connect to each other over them. A client listens only
-        // where --listen says, whatever a config file holds.
-        if !listen.is_empty() || role == Role::Client || !connect.is_empty() || !from_file {
+        // where --listen says, whatever a config file holds; a server keeps its file's
+        // endpoints unless --listen replaces them.
+        if role == Role::Client || !listen.is_empty() || !from_file {
             set(&mut config, "listen/endpoints", quoted(&listen))?;
         }
         if !connect.is_empty() {

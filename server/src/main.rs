@@ -1,10 +1,11 @@
-//! `arena-server`: hosts highway-arena envs over Zenoh until SIGINT or SIGTERM.
+//! `arena-server`: hosts highway-arena envs over Zenoh until SIGINT or SIGTERM, or, with
+//! `--route-only`, routes a site's servers and clients without hosting envs.
 
 use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
-use arena_protocol::session::{ConnectionFlags, Mode, Role};
+use arena_protocol::session::{ConnectionFlags, Mode, Role, guard_server_keys};
 use arena_server::transport::{Limits, Scenarios, Server};
 use clap::Parser;
 
@@ -30,7 +31,7 @@ struct Args {
     /// file stops the server with the file and the error.
     #[arg(long)]
     scenarios: Option<PathBuf>,
-    /// Only route for others (with --mode router): host no envs and announce no server.
+    /// Only route for others (Zenoh router mode, implied): host no envs and announce no server.
     /// The meeting point of a deployment whose servers and clients connect to it.
     #[arg(long)]
     route_only: bool,
@@ -45,20 +46,23 @@ macro_rules! say {
     }};
 }
 
-/// At most two malloc arenas (glibc): Zenoh starts a thread per connecting client for a
-/// while, and glibc would give each its own arena and keep it for good, so the server
-/// would grow with every burst of clients. Must run before any thread starts.
+/// At most two malloc arenas (glibc) unless MALLOC_ARENA_MAX says otherwise: Zenoh starts
+/// a thread per connecting client for a while, and glibc would give each its own arena
+/// and keep it for good, so the server would grow with every burst of clients. Must run
+/// before any thread starts.
 fn limit_malloc_arenas() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: mallopt only sets an allocator option; called before other threads exist.
-    unsafe {
-        libc::mallopt(libc::M_ARENA_MAX, 2);
+    if std::env::var_os("MALLOC_ARENA_MAX").is_none() {
+        // SAFETY: mallopt only sets an allocator option; called before other threads exist.
+        unsafe {
+            libc::mallopt(libc::M_ARENA_MAX, 2);
+        }
     }
 }
 
 fn main() -> anyhow::Result<()> {
     limit_malloc_arenas();
-    let args = Args::parse();
+    let mut args = Args::parse();
     if !(args.idle_timeout.is_finite() && args.idle_timeout > 0.0) {
         anyhow::bail!("--idle-timeout must be a positive number of seconds, not {}", args.idle_timeout);
     }
@@ -67,8 +71,12 @@ fn main() -> anyhow::Result<()> {
             "--max-envs and --max-envs-per-client must be at least 1 (a server that can hold no env serves nothing)"
         );
     }
-    if args.route_only && args.connection.mode != Some(Mode::Router) {
-        anyhow::bail!("--route-only needs --mode router (a peer or client does not route for others)");
+    if args.route_only {
+        match args.connection.mode {
+            None => args.connection.mode = Some(Mode::Router),
+            Some(Mode::Router) => {}
+            Some(_) => anyhow::bail!("--route-only needs --mode router (a peer or client does not route for others)"),
+        }
     }
     let runtime =
         tokio::runtime::Builder::new_multi_thread().enable_all().build().context("cannot start the tokio runtime")?;
@@ -76,7 +84,13 @@ fn main() -> anyhow::Result<()> {
 }
 
 async fn open_session(args: &Args) -> anyhow::Result<zenoh::Session> {
-    let config = args.connection.zenoh_config(Role::Server).map_err(anyhow::Error::msg)?;
+    let mut config = args.connection.zenoh_config(Role::Server).map_err(anyhow::Error::msg)?;
+    // A peer server is its clients' meeting point: nobody else may serve its keys there.
+    // (A config file, or a router, brings its own access control: deploy/auth/.)
+    let peer = matches!(args.connection.mode, None | Some(Mode::Peer));
+    if peer && !args.route_only && args.connection.zenoh_config.is_none() {
+        guard_server_keys(&mut config, &args.connection.prefix).map_err(anyhow::Error::msg)?;
+    }
     zenoh::open(config).await.map_err(|e| {
         let hint = if args.connection.connect.is_empty() {
             String::new()

@@ -1,4 +1,6 @@
-//! The authenticated deployment of deploy/auth/, as separate processes on loopback: a
+//! Who may serve the arena's keys. A default server (a Zenoh peer its clients connect
+//! to) lets no other session declare a queryable or a server token under the prefix.
+//! Then the authenticated deployment of deploy/auth/, as separate processes on loopback: a
 //! router with user/password authentication and an access-control list, an arena-server
 //! logged in as a server, and clients. Shows that a client without credentials is
 //! refused, one with them is served, and one that tries to pose as a server (declare a
@@ -38,6 +40,65 @@ fn client_config_as(user: &str, password: &str) -> PathBuf {
     let path = std::env::temp_dir().join(format!("arena-client-{user}-{}.json5", std::process::id()));
     std::fs::write(&path, text).expect("write a client config");
     path
+}
+
+/// A session that tries to serve in a server's place: a queryable on its request key
+/// (counting what reaches it, answering with a forged reply) and a server token of its own.
+struct Impostor {
+    asked: Arc<AtomicUsize>,
+    _queryable: zenoh::query::Queryable<()>,
+    _token: zenoh::liveliness::LivelinessToken,
+}
+
+async fn pose_as(session: &zenoh::Session, server_id: &str) -> Impostor {
+    let asked = Arc::new(AtomicUsize::new(0));
+    let counter = Arc::clone(&asked);
+    let _queryable = session
+        .declare_queryable(keys::server_rpc("arena", server_id).unwrap())
+        .callback(move |query| {
+            counter.fetch_add(1, Ordering::SeqCst);
+            let _ = zenoh::Wait::wait(query.reply(query.key_expr().clone(), b"forged".to_vec()));
+        })
+        .await
+        .unwrap();
+    let _token =
+        session.liveliness().declare_token(keys::server_liveliness("arena", "impostor").unwrap()).await.unwrap();
+    Impostor { asked, _queryable, _token }
+}
+
+/// `client` asks `server_id` for its info `times` times, each answered by the real server.
+async fn served_by(client: &Client, server_id: &str, times: usize) {
+    for _ in 0..times {
+        let info = client.server_info(server_id).await.expect("server info");
+        assert_eq!(info.server_id, server_id);
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn on_a_default_server_no_other_session_can_serve_its_keys() {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let server = Process::start(&["--listen", &endpoint]);
+    let server_id = server.server_id();
+    // A Zenoh client session is routed by the peer server it connects to, so without the
+    // server's guard its queryable would be sent every request (client ids included).
+    let rogue_flags = ConnectionFlags { mode: Some(Mode::Client), ..ConnectionFlags::connecting_to(&endpoint) };
+    let rogue = zenoh::open(rogue_flags.zenoh_config(Role::Client).unwrap()).await.expect("the rogue connects");
+    let impostor = pose_as(&rogue, &server_id).await;
+    for mode in [Mode::Peer, Mode::Client] {
+        let flags =
+            ConnectionFlags { mode: Some(mode), timeout: 3.0, retries: 1, ..ConnectionFlags::connecting_to(&endpoint) };
+        let client = Client::connect(&flags).await.expect("a client");
+        client.pick_server().await.expect("the server");
+        served_by(&client, &server_id, 20).await;
+        assert_eq!(
+            client.servers().await.unwrap(),
+            std::slice::from_ref(&server_id),
+            "{mode:?}: the impostor's token is seen"
+        );
+        client.close().await.unwrap();
+    }
+    assert_eq!(impostor.asked.load(Ordering::SeqCst), 0, "a request reached the rogue's queryable");
+    rogue.close().await.unwrap();
 }
 
 struct Deployment {
@@ -83,17 +144,7 @@ async fn only_authenticated_users_are_served_and_no_client_can_pose_as_a_server(
         .await
         .expect("bob logs in");
     std::fs::remove_file(bob_config).ok();
-    let asked_bob = Arc::new(AtomicUsize::new(0));
-    let counter = Arc::clone(&asked_bob);
-    let _fake_queryable = bob
-        .declare_queryable(keys::server_rpc("arena", &deployment.server_id).unwrap())
-        .callback(move |query| {
-            counter.fetch_add(1, Ordering::SeqCst);
-            let _ = zenoh::Wait::wait(query.reply(query.key_expr().clone(), b"forged".to_vec()));
-        })
-        .await
-        .unwrap();
-    let _fake_token = bob.liveliness().declare_token(keys::server_liveliness("arena", "bobs").unwrap()).await.unwrap();
+    let bobs = pose_as(&bob, &deployment.server_id).await;
 
     // alice is served, by the real server only.
     let alice = Client::connect(&flags(&deployment.router, Some(deploy_file("client.json5")))).await.expect("alice");
@@ -114,7 +165,8 @@ async fn only_authenticated_users_are_served_and_no_client_can_pose_as_a_server(
     }
     let info = alice.server_info(&deployment.server_id).await.expect("server info");
     assert_eq!(info.server_id, deployment.server_id);
-    assert_eq!(asked_bob.load(Ordering::SeqCst), 0, "a request reached bob's queryable");
+    served_by(&alice, &deployment.server_id, 20).await;
+    assert_eq!(bobs.asked.load(Ordering::SeqCst), 0, "a request reached bob's queryable");
     alice.close().await.unwrap();
     bob.close().await.unwrap();
 }

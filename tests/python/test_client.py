@@ -326,6 +326,11 @@ def test_a_vector_env_through_a_router_spreads_over_every_server_with_the_same_r
     try:
         for _ in range(3):
             processes.append(_start(["--mode", "client", "--connect", router], "serving through"))
+        watcher = highway_arena._core.Client([router], mode="client")
+        deadline = time.monotonic() + 10
+        while len(watcher.servers()) < 3 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        watcher.close()
         spread = highway_arena.vector_env("merge-random", num_envs=6, connect=router, mode="client", connect_timeout=5.0)
         assert len(set(spread.servers)) == 3, spread.servers
         assert sorted(spread.servers.count(s) for s in set(spread.servers)) == [2, 2, 2]

@@ -1,4 +1,4 @@
-//! Rust client of highway-arena: find servers by Zenoh liveliness, create envs on one,
+//! Rust client of highway-arena: find servers by Zenoh liveliness, place envs across them,
 //! and reset, step (one env or a batch in one round trip), render, read state and close
 //! them, with timeouts and safe retries.
 //!
@@ -290,27 +290,41 @@ impl Client {
         }
     }
 
-    /// Every server alive and what it reports of itself (load included); a server that
-    /// does not answer is left out.
+    /// Every server alive and what it reports of itself (load included), under the id it
+    /// was asked by; a server that does not answer is left out, but when servers are
+    /// listed and none answers, the first error is returned (a server of another protocol
+    /// version says so, rather than "no server").
     pub async fn server_infos(&self) -> Result<Vec<ServerInfo>> {
         let mut pending = tokio::task::JoinSet::new();
         for server in self.servers().await? {
             let client = self.clone();
-            pending.spawn(async move { client.server_info(&server).await });
+            pending.spawn(async move {
+                client.server_info(&server).await.map(|info| ServerInfo { server_id: server, ..info })
+            });
         }
-        let mut infos = Vec::new();
+        let (mut infos, mut first_error) = (Vec::new(), None);
         while let Some(done) = pending.join_next().await {
-            if let Ok(Ok(info)) = done {
-                infos.push(info);
+            match done {
+                Ok(Ok(info)) => infos.push(info),
+                Ok(Err(error)) => {
+                    first_error.get_or_insert(error);
+                }
+                Err(e) => {
+                    first_error.get_or_insert(ClientError::Protocol(format!("a server info task failed: {e}")));
+                }
             }
+        }
+        if let (true, Some(error)) = (infos.is_empty(), first_error) {
+            return Err(error);
         }
         infos.sort_by(|a, b| a.server_id.cmp(&b.server_id));
         Ok(infos)
     }
 
     /// Where to create `count` new envs: each on the server with the fewest envs per
-    /// core at that point (counting the ones placed before it), ties to the fewest envs,
-    /// then the lowest id. Waits up to the timeout for a first server.
+    /// core at that point (counting the ones placed before it; full servers skipped),
+    /// ties to the fewest envs, then an order of this client's own (see
+    /// `placement::spread`). Waits up to the timeout for a first server.
     pub async fn place(&self, count: usize) -> Result<Vec<String>> {
         let deadline = Instant::now() + self.inner.timeout;
         let mut infos = self.server_infos().await?;
@@ -321,7 +335,19 @@ impl Client {
             tokio::time::sleep(Duration::from_millis(50)).await;
             infos = self.server_infos().await?;
         }
-        Ok(placement::spread(&infos, count))
+        let placed = placement::spread(&infos, count, self.inner.id.tag());
+        if placed.len() < count {
+            return Err(ClientError::Server(ErrorReply {
+                code: ErrorCode::TooManyEnvs,
+                message: format!(
+                    "the {} server(s) found have room for {} more env(s), not {count}: each holds its --max-envs",
+                    infos.len(),
+                    placed.len()
+                ),
+                env_usable: false,
+            }));
+        }
+        Ok(placed)
     }
 
     /// Sends `body` to `server` and waits for its reply; with `retry`, resends the same

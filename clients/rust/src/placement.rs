@@ -4,26 +4,59 @@
 
 use std::cmp::Ordering;
 
-use arena_protocol::ServerInfo;
+use arena_protocol::{ClientTag, ServerInfo};
+
+/// One server's load as placement sees it.
+struct Load<'a> {
+    envs: u128,
+    cores: u128,
+    room: u128,
+    /// This client's own order among equally loaded servers.
+    turn: u64,
+    id: &'a str,
+}
 
 /// Servers for `count` new envs, in order: each on the server with the fewest envs per
-/// core, counting those placed before it; ties go to the fewest envs, then the lowest
-/// id. Empty when `servers` is.
-pub fn spread(servers: &[ServerInfo], count: usize) -> Vec<String> {
-    let mut load: Vec<(u64, u64, &str)> =
-        servers.iter().map(|s| (u64::from(s.envs), u64::from(s.cores.max(1)), s.server_id.as_str())).collect();
+/// core, counting those placed before it and skipping servers at their `max_envs`; ties
+/// go to the fewest envs, then to an order of this client's own (a hash of its tag and
+/// the server id), so clients placing at the same moment do not all pick one server.
+/// Shorter than `count` when the servers are full; empty when there are none.
+pub fn spread(servers: &[ServerInfo], count: usize, client: ClientTag) -> Vec<String> {
+    let mut load: Vec<Load> = servers
+        .iter()
+        .map(|s| Load {
+            envs: u128::from(s.envs),
+            cores: u128::from(s.cores.max(1)),
+            room: u128::from(s.max_envs.saturating_sub(s.envs)),
+            turn: turn(client, &s.server_id),
+            id: s.server_id.as_str(),
+        })
+        .collect();
     let mut placed = Vec::with_capacity(count);
     for _ in 0..count {
-        let Some(best) = (0..load.len()).min_by(|&a, &b| lighter(load[a], load[b])) else { break };
-        load[best].0 += 1;
-        placed.push(load[best].2.to_string());
+        let open = (0..load.len()).filter(|&i| load[i].room > 0);
+        let Some(best) = open.min_by(|&a, &b| lighter(&load[a], &load[b])) else { break };
+        load[best].envs += 1;
+        load[best].room -= 1;
+        placed.push(load[best].id.to_string());
     }
     placed
 }
 
-/// Compares (envs, cores, id) by envs per core (exact: cross-multiplied), then envs, then id.
-fn lighter(a: (u64, u64, &str), b: (u64, u64, &str)) -> Ordering {
-    (a.0 * b.1).cmp(&(b.0 * a.1)).then(a.0.cmp(&b.0)).then(a.2.cmp(b.2))
+/// By envs per core (exact: cross-multiplied, in u128 so no report can overflow it),
+/// then envs, then the client's turn, then id.
+fn lighter(a: &Load, b: &Load) -> Ordering {
+    (a.envs * b.cores).cmp(&(b.envs * a.cores)).then(a.envs.cmp(&b.envs)).then(a.turn.cmp(&b.turn)).then(a.id.cmp(b.id))
+}
+
+/// A stable hash (FNV-1a) of the client's tag and a server id.
+fn turn(client: ClientTag, server: &str) -> u64 {
+    client
+        .0
+        .to_be_bytes()
+        .iter()
+        .chain(server.as_bytes())
+        .fold(0xcbf2_9ce4_8422_2325, |hash, &byte| (hash ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3))
 }
 
 #[cfg(test)]
@@ -45,29 +78,59 @@ mod tests {
         }
     }
 
+    const ME: ClientTag = ClientTag(7);
+
+    fn count(placed: &[String], id: &str) -> usize {
+        placed.iter().filter(|s| *s == id).count()
+    }
+
     #[test]
-    fn equal_servers_take_turns_in_id_order() {
+    fn equal_servers_take_turns() {
         let servers = [server("b", 0, 2), server("a", 0, 2), server("c", 0, 2)];
-        assert_eq!(spread(&servers, 5), ["a", "b", "c", "a", "b"]);
+        let placed = spread(&servers, 6, ME);
+        assert_eq!([count(&placed, "a"), count(&placed, "b"), count(&placed, "c")], [2, 2, 2], "{placed:?}");
+        assert_ne!(placed[0], placed[1], "{placed:?}");
     }
 
     #[test]
     fn a_busy_server_gets_new_envs_only_once_the_others_catch_up() {
         let servers = [server("a", 4, 2), server("b", 0, 2)];
-        assert_eq!(spread(&servers, 6), ["b", "b", "b", "b", "a", "b"]);
+        let placed = spread(&servers, 6, ME);
+        assert_eq!(placed[..4], ["b", "b", "b", "b"], "{placed:?}");
+        assert_eq!(count(&placed, "a"), 1, "{placed:?}");
     }
 
     #[test]
     fn more_cores_take_more_envs() {
         // 8 cores against 2: four envs there for each one here.
         let servers = [server("big", 0, 8), server("small", 0, 2)];
-        let placed = spread(&servers, 10);
-        assert_eq!(placed.iter().filter(|s| *s == "big").count(), 8, "{placed:?}");
+        let placed = spread(&servers, 10, ME);
+        assert_eq!(count(&placed, "big"), 8, "{placed:?}");
+    }
+
+    #[test]
+    fn clients_placing_at_once_do_not_all_pick_the_same_idle_server() {
+        let servers: Vec<ServerInfo> = (0..4).map(|k| server(&format!("server-{k}"), 0, 2)).collect();
+        let first: std::collections::BTreeSet<String> =
+            (0..16u128).map(|client| spread(&servers, 1, ClientTag(client))[0].clone()).collect();
+        assert!(first.len() >= 3, "16 clients' first envs went to {first:?}");
+    }
+
+    #[test]
+    fn full_servers_are_skipped_and_reports_cannot_overflow() {
+        let mut full = server("full", 1024, 64);
+        full.max_envs = 1024;
+        let placed = spread(&[full, server("open", 10, 2)], 3, ME);
+        assert_eq!(placed, ["open", "open", "open"]);
+        let mut huge = server("huge", u32::MAX - 1, u32::MAX);
+        huge.max_envs = u32::MAX;
+        // "small" is past its max_envs; "huge" has room for one more, then the list ends.
+        assert_eq!(spread(&[huge, server("small", u32::MAX - 1, 1)], 2, ME), ["huge"]);
     }
 
     #[test]
     fn no_server_no_placement() {
-        assert!(spread(&[], 3).is_empty());
-        assert!(spread(&[server("a", 0, 0)], 2) == ["a", "a"], "a server reporting 0 cores counts as 1");
+        assert!(spread(&[], 3, ME).is_empty());
+        assert!(spread(&[server("a", 0, 0)], 2, ME) == ["a", "a"], "a server reporting 0 cores counts as 1");
     }
 }

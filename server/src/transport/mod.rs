@@ -3,6 +3,7 @@
 //! subscriber that closes the envs of clients that are gone, and a sweeper for idle envs.
 //! Closing drains: the requests being answered finish and are replied to; later ones are
 //! told `ShuttingDown` at once, so no client waits out its timeout on a server that left.
+//! Memory freed when clients leave is handed back to the system here (`malloc_trim`).
 
 mod registry;
 
@@ -123,8 +124,8 @@ impl Server {
                 let tag = keys::client_tag_from_liveliness(&prefix_owned, sample.key_expr().as_str());
                 if let Some(client) = tag.and_then(|tag| tag.parse::<ClientTag>().ok()) {
                     let closed = watcher.drop_client(client);
-                    return_freed_memory();
                     if closed > 0 {
+                        return_freed_memory();
                         eprintln!("arena-server: client {client} is gone; closed its {closed} env(s)");
                     }
                 }

@@ -4,8 +4,6 @@
 //! reclaiming — so each can be tested without a network and the queryable stays thin.
 
 use std::collections::HashMap;
-
-use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
@@ -15,6 +13,8 @@ use arena_protocol::{
     OptionValue, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetReply, ScenarioSource, ServerInfo,
     StepReply, decode, encode, peek_version,
 };
+
+use rayon::prelude::*;
 
 use crate::env::Env;
 use arena_sim::scenario::{BUILTIN, Scenario};
@@ -109,10 +109,10 @@ pub struct Registry {
     closed: Mutex<Tombstones>,
     /// Env steps taken, for `ServerInfo::steps`.
     steps: AtomicU64,
-    /// Steps the envs of a batch, one thread per core.
-    batch_workers: rayon::ThreadPool,
-    /// Single (non-batch) requests being answered now: batch workers give way to them
-    /// between envs, so a client's big batch does not hold up another client's step.
+    /// Steps the envs of a batch, one thread per core; started by the first batch.
+    batch_workers: std::sync::OnceLock<Option<rayon::ThreadPool>>,
+    /// Single steps and resets being answered now: batch workers give way to them between
+    /// envs, so a client's big batch does not hold up another client's step.
     singles: AtomicUsize,
 }
 
@@ -153,14 +153,11 @@ fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
 /// The longest a batch worker waits, before each env, for single requests to be answered.
 const GIVE_WAY_AT_MOST: Duration = Duration::from_millis(2);
 
-/// The batch pool: as many threads as cores.
-fn batch_workers() -> rayon::ThreadPool {
+/// The batch pool: as many threads as cores; `None` (batches step on the caller's
+/// thread) if no thread can be started.
+fn batch_workers() -> Option<rayon::ThreadPool> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let built = rayon::ThreadPoolBuilder::new().num_threads(threads).thread_name(|i| format!("batch-{i}")).build();
-    // Building fails only when no thread can be started; then one thread, or none at all.
-    built.unwrap_or_else(|_| {
-        rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a thread pool of one thread")
-    })
+    rayon::ThreadPoolBuilder::new().num_threads(threads).thread_name(|i| format!("batch-{i}")).build().ok()
 }
 
 /// Counts a single request as being answered for as long as it lives.
@@ -209,7 +206,7 @@ impl Registry {
             held: Mutex::new(HashMap::new()),
             closed: Mutex::new(Tombstones::default()),
             steps: AtomicU64::new(0),
-            batch_workers: batch_workers(),
+            batch_workers: std::sync::OnceLock::new(),
             singles: AtomicUsize::new(0),
         }
     }
@@ -246,7 +243,8 @@ impl Registry {
             return Err(wrong_version(request.version));
         }
         let client = request.client;
-        let _single = (!matches!(request.body, RequestBody::StepBatch { .. })).then(|| Single::begin(&self.singles));
+        let _single = matches!(request.body, RequestBody::Step { .. } | RequestBody::Reset { .. })
+            .then(|| Single::begin(&self.singles));
         match request.body {
             RequestBody::ServerInfo => Ok(ReplyBody::ServerInfo(self.info())),
             RequestBody::CreateEnv { scenario, options } => self.create(client, scenario, &options),
@@ -479,13 +477,18 @@ impl Registry {
         let guarded = |step: &BatchStep| {
             self.give_way();
             std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| one(step))).unwrap_or_else(|_| {
-                BatchItem::Err(error(ErrorCode::Internal, "stepping this env panicked; this is a server bug", false))
+                // Half stepped, it cannot be trusted again: closed, like any closed env.
+                let _ = self.close(client, step.env);
+                let message = "stepping this env panicked (a server bug); it was closed: create a new one";
+                BatchItem::Err(error(ErrorCode::Internal, message, false))
             })
         };
-        if steps.len() < 4 || self.batch_workers.current_num_threads() <= 1 {
-            return steps.iter().map(guarded).collect();
+        match self.batch_workers.get_or_init(batch_workers) {
+            Some(workers) if steps.len() >= 4 && workers.current_num_threads() > 1 => {
+                workers.install(|| steps.par_iter().map(guarded).collect())
+            }
+            _ => steps.iter().map(guarded).collect(),
         }
-        self.batch_workers.install(|| steps.par_iter().map(guarded).collect())
     }
 
     fn close(&self, client: ClientId, env: EnvId) -> Result<ReplyBody, ErrorReply> {

@@ -1,20 +1,22 @@
-//! Prints how a 4 m lane change settles for each style and speed (the table in
-//! docs/parameters.md): `cargo run --release -p arena-server --example lane_change`
+//! Prints how a 4 m lane change settles for each style and speed at the default 10 ms
+//! physics step (the table in docs/parameters.md, "Driver"), with the manoeuvre and bounds
+//! of `dynamics::LANE_CHANGE_BOUNDS`: `cargo run --release -p arena-sim --example lane_change`
 
-use arena_sim::dynamics::{Style, lane_change_response};
+use arena_sim::dynamics::{LANE_CHANGE_BOUNDS, Style, lane_change_response};
 
 fn main() {
-    println!("| style | speed (m/s) | settling time to ±0.2 m (s) | overshoot (m) |");
+    let (bounds, dt) = (LANE_CHANGE_BOUNDS, 0.01);
+    println!("| style | speed (m/s) | settling time to ±{} m (s) | overshoot (m) |", bounds.band);
     println!("|---|---|---|---|");
     for style in Style::ALL {
-        for speed in [15.0, 20.0, 30.0] {
-            let response = lane_change_response(style, speed, 4.0, 4.0, 0.2, 15.0, 0.01);
+        for speed in bounds.speeds {
+            let response = bounds.response(style, speed, true, dt);
             println!("| {} | {speed:.0} | {:.2} | {:.3} |", style.name(), response.settling_time, response.overshoot);
         }
     }
-    let step = lane_change_response(Style::Conservative, 30.0, 4.0, 1e-3, 0.2, 15.0, 0.01);
+    let step = lane_change_response(Style::Conservative, 30.0, bounds.width, 1e-3, bounds.band, bounds.horizon, dt);
     println!(
-        "\nWithout a path (Y_p stepped 4 m), conservative at 30 m/s: settles at {:.2} s, overshoot {:.3} m",
-        step.settling_time, step.overshoot
+        "\nWithout a path (Y_p stepped {} m), conservative at 30 m/s: settles at {:.2} s, overshoot {:.3} m",
+        bounds.width, step.settling_time, step.overshoot
     );
 }

@@ -611,6 +611,15 @@ impl ScenarioFile {
         if sim.control_dt < sim.physics_dt || sim.step_dt < sim.physics_dt {
             return Err(invalid("sim.physics_dt", "must not exceed control_dt and step_dt".into()));
         }
+        // The world ticks round(period / physics_dt) times per period: a step that does not
+        // divide it would silently stretch the control period (0.04 s makes 0.12 s of 0.1 s).
+        for (key, period) in [("sim.control_dt", sim.control_dt), ("sim.step_dt", sim.step_dt)] {
+            let ticks = period / sim.physics_dt;
+            if (ticks - ticks.round()).abs() > 1e-6 * ticks {
+                let message = format!("must be a whole number of physics steps ({} s), not {ticks:.3}", sim.physics_dt);
+                return Err(invalid(key, message));
+            }
+        }
         if sim.max_cycles == 0 {
             return Err(invalid("sim.max_cycles", "must be at least 1".into()));
         }

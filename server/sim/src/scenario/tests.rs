@@ -132,6 +132,18 @@ fn duplicate_names_and_bad_values_are_refused() {
 }
 
 #[test]
+fn a_physics_step_that_does_not_divide_the_periods_is_refused() {
+    let sim =
+        |physics: f64, step: f64| format!("name = \"t\"\n[sim]\nphysics_dt = {physics}\nstep_dt = {step}\n[road]");
+    let file = |sim: String| GOOD.replacen("name = \"t\"\n[road]", &sim, 1);
+    // control_dt is 0.1 by default: 3 steps of 1/30 s and 4 of 25 ms fit it, 0.04 does not.
+    assert!(parse(&file(sim(1.0 / 30.0, 1.0))).is_ok());
+    assert!(parse(&file(sim(0.025, 1.0))).is_ok());
+    assert!(error(&file(sim(0.04, 1.0))).contains("`sim.control_dt` must be a whole number of physics steps"));
+    assert!(error(&file(sim(0.025, 0.11))).contains("`sim.step_dt` must be a whole number of physics steps"));
+}
+
+#[test]
 fn bad_overrides_are_refused_like_bad_files() {
     let refuse = |key: &str, value: toml::Value| {
         Scenario::parse("test.toml", GOOD, &[(key.to_string(), value)]).unwrap_err().to_string()

@@ -13,7 +13,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 
 fn world_of(vehicles: usize) -> arena_sim::world::World {
     let overrides = [
-        // The default physics step (highway.toml itself runs at 50 Hz).
+        // The default physics step (highway.toml itself runs at 1/30 s).
         ("sim.physics_dt".to_string(), toml::Value::Float(0.01)),
         ("traffic.count".to_string(), toml::Value::Integer(vehicles as i64 - 1)),
         ("vehicle.ego_0.driver".to_string(), toml::Value::Table(toml::toml! { kind = "idm" })),

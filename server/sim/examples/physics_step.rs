@@ -64,7 +64,7 @@ fn main() {
     let skipped: Vec<String> =
         CANDIDATES.iter().filter(|dt| !steps.contains(dt)).map(|dt| format!("{:.1} ms", dt * 1e3)).collect();
     println!(
-        "highway.toml: physics {} ms, control {control_dt} s, env step {step_dt} s, {vehicles} vehicles",
+        "highway.toml: physics {:.1} ms, control {control_dt} s, env step {step_dt} s, {vehicles} vehicles",
         base.world.physics_dt * 1e3
     );
     println!("Bounds ({bounds:?}); steps that do not divide the control period, skipped: {}\n", skipped.join(", "));
@@ -152,7 +152,7 @@ fn main() {
 
     println!("\n## Summary\n");
     println!(
-        "| dt (ms) | every lane change within bounds | right mirrors left | worst settling (s) | worst overshoot (m) | max deviation (m) | RK4 stable 0.5-30 m/s | highway.toml clean | vehicle-substeps per simulated s |"
+        "| dt (ms) | every lane change within bounds | right mirrors left | worst settling (s) | worst overshoot (m) | max deviation (m) | RK4 stable 0.5-36 m/s | highway.toml clean | vehicle-substeps per simulated s |"
     );
     println!("|---:|---|---|---:|---:|---:|---|---|---:|");
     for (i, &(dt, hold, mirrored, settling, overshoot, dev)) in summary.iter().enumerate() {

@@ -132,6 +132,35 @@ fn duplicate_names_and_bad_values_are_refused() {
 }
 
 #[test]
+fn every_shipped_physics_step_keeps_lane_changes_within_bounds_and_rk4_stable() {
+    // docs/parameters.md, "Physics step": the dynamics tests hold lane changes to these
+    // bounds at 10 ms; highway.toml runs at 1/30 s, highway-gt.toml at 20 ms.
+    use crate::dynamics::{LANE_CHANGE_BOUNDS, RK4_CHECK_SPEEDS, Style, rk4_growth};
+    let bounds = LANE_CHANGE_BOUNDS;
+    for (name, ..) in BUILTIN {
+        let dt = builtin(name).unwrap().unwrap().world.physics_dt;
+        for style in Style::ALL {
+            for speed in bounds.speeds {
+                for left in [true, false] {
+                    let response = bounds.response(style, speed, left, dt);
+                    assert!(
+                        bounds.hold(&response),
+                        "{name} (dt {dt}): {style:?} at {speed} m/s, left {left}: {response:?}"
+                    );
+                }
+            }
+            for speed in RK4_CHECK_SPEEDS {
+                let growth = rk4_growth(style, speed, dt);
+                assert!(
+                    growth <= 1.0 + 1e-6,
+                    "{name} (dt {dt}): RK4 grows {style:?}'s modes at {speed} m/s by {growth}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn a_physics_step_that_does_not_divide_the_periods_is_refused() {
     let sim =
         |physics: f64, step: f64| format!("name = \"t\"\n[sim]\nphysics_dt = {physics}\nstep_dt = {step}\n[road]");

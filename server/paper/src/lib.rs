@@ -14,6 +14,8 @@
 //! assert_eq!(trace.samples.len(), 10);
 //! ```
 
+pub mod calibrate;
+pub mod compare;
 pub mod report;
 
 use std::collections::BTreeMap;
@@ -21,9 +23,10 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use arena_sim::dynamics::Style;
-use arena_sim::gt::{CostComponents, Game, stage_cost};
+use arena_sim::gt::{CostComponents, Game, GtParams, stage_cost};
+use arena_sim::preset::Preset;
 use arena_sim::road::LaneChange;
-use arena_sim::scenario::{BUILTIN, Scenario, ScenarioError};
+use arena_sim::scenario::{BUILTIN, DriverSpec, Scenario, ScenarioError};
 use arena_sim::world::{Driver, Status, VehicleId, World};
 
 /// One of the paper's two scenarios.
@@ -78,8 +81,12 @@ impl PaperScenario {
 pub struct PaperOptions {
     /// The scenario file's text, if not the built-in one (a permuted copy, say).
     pub scenario_text: Option<String>,
-    /// Relative tolerance on the Stackelberg follower set (eq. 17b); 0 is the paper's.
-    pub follower_tolerance: f64,
+    /// The constants of every `gt` car of the run (EC and its adjacent cars): the
+    /// defaults, a preset's (`with_preset`) or a candidate of `arena calibrate`.
+    pub params: GtParams,
+    /// Per built-in scenario name ("merge", "overtake"), dotted-key overrides of the
+    /// scenario file (a preset's adjacent-car target speeds, say).
+    pub scenario_overrides: BTreeMap<String, Vec<(String, toml::Value)>>,
     /// Style of the adjacent cars (the paper does not say; normal).
     pub adjacent_style: Style,
     /// Simulated seconds, if not the scenario's own.
@@ -92,11 +99,19 @@ impl Default for PaperOptions {
     fn default() -> Self {
         PaperOptions {
             scenario_text: None,
-            follower_tolerance: 0.0,
+            params: GtParams::default(),
+            scenario_overrides: BTreeMap::new(),
             adjacent_style: Style::Normal,
             duration: None,
             seed: 0,
         }
+    }
+}
+
+impl PaperOptions {
+    /// The defaults with `preset`'s constants and scenario overrides.
+    pub fn with_preset(preset: &Preset) -> PaperOptions {
+        PaperOptions { params: preset.gt, scenario_overrides: preset.scenario.clone(), ..PaperOptions::default() }
     }
 }
 
@@ -180,8 +195,8 @@ pub fn world(
     ec.insert("kind".into(), "gt".into());
     ec.insert("style".into(), style.name().into());
     ec.insert("game".into(), game.name().into());
-    ec.insert("follower_tolerance".into(), options.follower_tolerance.into());
-    let mut overrides = vec![("vehicle.ec_0.driver".to_string(), toml::Value::Table(ec))];
+    let mut overrides = options.scenario_overrides.get(scenario.file()).cloned().unwrap_or_default();
+    overrides.push(("vehicle.ec_0.driver".to_string(), toml::Value::Table(ec)));
     for (name, _) in &scenario.roles()[1..] {
         let mut ac = toml::Table::new();
         ac.insert("kind".into(), "gt".into());
@@ -192,7 +207,13 @@ pub fn world(
     }
     let (_, file, text) = BUILTIN.iter().find(|(name, ..)| *name == scenario.file()).copied().unwrap_or(BUILTIN[0]);
     let text = options.scenario_text.as_deref().unwrap_or(text);
-    Ok(Scenario::parse(file, text, &overrides)?.build(options.seed))
+    let mut parsed = Scenario::parse(file, text, &overrides)?;
+    for vehicle in &mut parsed.vehicles {
+        if let DriverSpec::Gt { params, .. } = &mut vehicle.driver {
+            *params = options.params;
+        }
+    }
+    Ok(parsed.build(options.seed))
 }
 
 /// Runs one scenario × style × game and returns its record and time series.

@@ -6,7 +6,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::{PaperOptions, PaperScenario, Record, Trace};
+use crate::{PaperScenario, Record, Trace};
 use anyhow::Context;
 use arena_sim::dynamics::Style;
 use arena_sim::gt::Game;
@@ -24,9 +24,14 @@ pub struct PaperArgs {
     /// Folder for the PNG plots (created if missing).
     #[arg(long, default_value = "out/paper")]
     pub out: PathBuf,
-    /// Relative tolerance on the Stackelberg follower set of eq. (17b); 0 is the paper's.
-    #[arg(long, default_value_t = 0.0)]
-    pub follower_tolerance: f64,
+    /// Parameter preset of every game-theoretic car: a built-in name (default,
+    /// paper-fit) or a .toml file, such as one `arena calibrate` wrote.
+    #[arg(long, default_value = "default")]
+    pub params: String,
+    /// Relative tolerance on the Stackelberg follower set of eq. (17b), if not the
+    /// preset's (0 is eq. 17b exactly).
+    #[arg(long)]
+    pub follower_tolerance: Option<f64>,
 }
 
 /// One run's results.
@@ -40,12 +45,15 @@ struct Run {
 
 /// Runs `arena paper`.
 pub fn run(args: PaperArgs) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        args.follower_tolerance.is_finite() && args.follower_tolerance >= 0.0,
-        "--follower-tolerance must be a number >= 0, not {}",
-        args.follower_tolerance
-    );
-    let options = PaperOptions { follower_tolerance: args.follower_tolerance, ..PaperOptions::default() };
+    let (preset, mut options) = crate::calibrate::options_of(&args.params)?;
+    if let Some(tolerance) = args.follower_tolerance {
+        anyhow::ensure!(
+            tolerance.is_finite() && tolerance >= 0.0,
+            "--follower-tolerance must be a number >= 0, not {tolerance}"
+        );
+        options.params.decision.game.follower_tolerance = tolerance;
+    }
+    println!("parameters: preset '{}' ({})", preset.name, preset.description);
     let started = std::time::Instant::now();
     let mut runs = Vec::new();
     for scenario in PaperScenario::ALL {
@@ -58,6 +66,8 @@ pub fn run(args: PaperArgs) -> anyhow::Result<()> {
         }
     }
     print!("{}", tables(&runs));
+    let records: Vec<Record> = runs.iter().map(|r| r.record.clone()).collect();
+    print!("{}", crate::compare::summary(&records));
     println!("\n12 runs simulated in {:.2} s (wall clock; plots follow)", started.elapsed().as_secs_f64());
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
@@ -84,6 +94,15 @@ fn cell(value: Option<f64>) -> String {
     value.map_or("-".to_string(), |v| format!("{v:.2}"))
 }
 
+/// Ours against the paper's, relative: "+12 %"; blank where either is missing.
+fn error(ours: Option<f64>, theirs: Option<f64>) -> String {
+    match (ours, theirs) {
+        (Some(o), Some(t)) => format!("{:+.0} %", (o - t) / t.abs() * 100.0),
+        (None, Some(_)) => "missing".to_string(),
+        _ => String::new(),
+    }
+}
+
 /// The counterparts of Tables IV–VII, ours beside the paper's.
 fn tables(runs: &[Run]) -> String {
     let mut out = String::new();
@@ -93,20 +112,24 @@ fn tables(runs: &[Run]) -> String {
             PaperScenario::B => ("VI", "VII", "x 10^4"),
         };
         let _ = writeln!(out, "\nScenario {} ({}): Table {decision}, ours | paper\n", scenario.name(), scenario.file());
-        let _ =
-            writeln!(out, "| style | figure | NE ours | NE paper | SE ours | SE paper |\n|---|---|---|---|---|---|");
+        let _ = writeln!(
+            out,
+            "| style | figure | NE ours | NE paper | NE err | SE ours | SE paper | SE err |\n|---|---|---|---|---|---|---|---|"
+        );
         for style in Style::ALL {
             let [ne, se] = Game::ALL.map(|game| find(runs, scenario, style, game));
             let [ne_ref, se_ref] = Game::ALL.map(|game| crate::reference(scenario, style, game));
             let mut row = |figure: &str, ours: [Option<f64>; 2], theirs: [Option<f64>; 2]| {
                 let _ = writeln!(
                     out,
-                    "| {} | {figure} | {} | {} | {} | {} |",
+                    "| {} | {figure} | {} | {} | {} | {} | {} | {} |",
                     style.name(),
                     cell(ours[0]),
                     cell(theirs[0]),
+                    error(ours[0], theirs[0]),
                     cell(ours[1]),
-                    cell(theirs[1])
+                    cell(theirs[1]),
+                    error(ours[1], theirs[1])
                 );
             };
             row("t_c (s)", [ne.record.t_c, se.record.t_c], [ne_ref.t_c, se_ref.t_c]);
@@ -128,23 +151,28 @@ fn tables(runs: &[Run]) -> String {
             };
             let _ = writeln!(
                 out,
-                "| {} | lane change | {} | {paper_side} | {} | {paper_side} |",
+                "| {} | lane change | {} | {paper_side} | | {} | {paper_side} | |",
                 style.name(),
                 side(ne),
                 side(se)
             );
-            let _ = writeln!(out, "| {} | collision | {} | no | {} | no |", style.name(), crash(ne), crash(se));
+            let _ = writeln!(out, "| {} | collision | {} | no | | {} | no | |", style.name(), crash(ne), crash(se));
             let iterations = |r: &Run| r.record.diagnostics.get("EC").map_or(0.0, |report| report.mean_qp_iterations);
             let _ = writeln!(
                 out,
-                "| {} | EC's QP iterations (mean) | {:.1} | - | {:.1} | - |",
+                "| {} | EC's QP iterations (mean) | {:.1} | - | | {:.1} | - | |",
                 style.name(),
                 iterations(ne),
                 iterations(se)
             );
             let inexact = |r: &Run| r.record.inexact_decisions;
-            let _ =
-                writeln!(out, "| {} | inexact decisions | {} | - | {} | - |", style.name(), inexact(ne), inexact(se));
+            let _ = writeln!(
+                out,
+                "| {} | inexact decisions | {} | - | | {} | - | |",
+                style.name(),
+                inexact(ne),
+                inexact(se)
+            );
         }
         let _ =
             writeln!(out, "\nScenario {}: Table {costs}, RMS of EC's costs, ours | paper ({scale})\n", scenario.name());

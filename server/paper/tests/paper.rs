@@ -122,22 +122,46 @@ fn a_run_is_reproducible_to_the_bit_and_serialises_as_documented() {
 }
 
 #[test]
-fn nash_and_stackelberg_coincide_until_stackelberg_decides_and_it_decides_no_later() {
+fn exact_nash_and_stackelberg_coincide_until_stackelberg_decides_and_it_decides_no_later() {
     // docs/paper-reproduction.md, "Nash against Stackelberg": while EC keeps its lane J^EC
-    // does not depend on AC's action, so the two exact games make the same moves; and the
-    // leader's lane-change value is never above a Nash one, so SE switches no later.
+    // does not depend on AC's action, so the two exact games (eq. 17b with no tolerance)
+    // make the same moves; and the leader's lane-change value is never above a Nash one,
+    // so SE switches no later.
+    let mut exact = PaperOptions::default();
+    exact.params.decision.game.follower_tolerance = 0.0;
     for scenario in PaperScenario::ALL {
         for style in Style::ALL {
             let (ne, ne_trace) = run(scenario, style, Game::Nash);
-            let (se, se_trace) = run(scenario, style, Game::Stackelberg);
+            let (se, se_trace) = paper::run(scenario, style, Game::Stackelberg, &exact).unwrap();
             let until = se.t_c.unwrap_or(f64::INFINITY);
-            let before = |trace: &'static Trace| trace.samples.iter().take_while(move |s| s.t < until);
-            assert!(before(ne_trace).eq(before(se_trace)), "{scenario:?} {style:?}: the runs differ before t_c");
+            let before = |trace: &Trace| trace.samples.iter().take_while(|s| s.t < until).cloned().collect::<Vec<_>>();
+            assert!(before(ne_trace) == before(&se_trace), "{scenario:?} {style:?}: the runs differ before t_c");
             if let (Some(ne), Some(se)) = (ne.t_c, se.t_c) {
                 assert!(se <= ne, "{scenario:?} {style:?}: SE decided at {se} s, after NE at {ne} s");
             }
         }
     }
+}
+
+#[test]
+fn with_the_defaults_every_stackelberg_lane_change_comes_later_than_its_nash_twin_with_a_larger_gap() {
+    // Issue 14: a user who picks Stackelberg gets a different expert, in the paper's
+    // direction (Tables IV and VI: SE later, with more room to every adjacent car).
+    let mut changes = 0;
+    for scenario in PaperScenario::ALL {
+        for style in Style::ALL {
+            let (ne, se) = (record(scenario, style, Game::Nash), record(scenario, style, Game::Stackelberg));
+            let Some(t_se) = se.t_c else { continue };
+            let t_ne = ne.t_c.unwrap_or_else(|| panic!("{scenario:?} {style:?}: SE changes lanes, NE does not"));
+            assert!(t_se > t_ne, "{scenario:?} {style:?}: SE at {t_se} s, NE at {t_ne} s");
+            for (role, gap) in &ne.gaps_at_t_c {
+                let se_gap = se.gaps_at_t_c[role];
+                assert!(se_gap.abs() > gap.abs(), "{scenario:?} {style:?}: gap to {role} SE {se_gap} m, NE {gap} m");
+            }
+            changes += 1;
+        }
+    }
+    assert_eq!(changes, 5, "every lane change of the paper's runs was compared");
 }
 
 /// `text` with its `[[vehicle]]` blocks in the order `order` gives (indices into the

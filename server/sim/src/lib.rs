@@ -5,11 +5,12 @@
 //! server (`arena-server`) and the paper harness (`arena-paper`) build on this crate.
 //!
 //! The modules follow the data, one concern each:
-//! `road` -> `dynamics` -> `scene` -> `traffic` / `gt` -> `world` -> `scenario`.
+//! `road` -> `dynamics` -> `scene` -> `traffic` / `gt` -> `world` -> `preset` -> `scenario`.
 #![warn(missing_docs)]
 
 pub mod dynamics;
 pub mod gt;
+pub mod preset;
 pub mod road;
 pub mod scenario;
 pub mod scene;

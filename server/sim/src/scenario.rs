@@ -245,8 +245,10 @@ enum DriverFile {
         game: Game,
         #[serde(default)]
         role: Role,
-        #[serde(default)]
-        follower_tolerance: f64,
+        /// Overrides the preset's (or the default) follower-set tolerance.
+        follower_tolerance: Option<f64>,
+        /// A parameter preset (`crate::preset`): a built-in name or a .toml file.
+        params: Option<String>,
     },
 }
 
@@ -327,8 +329,9 @@ pub enum DriverSpec {
         game: Game,
         /// Leader (the paper's EC) or follower (its AC).
         role: Role,
-        /// Relative tolerance on the follower set of eq. (17b); 0 is the paper's.
-        follower_tolerance: f64,
+        /// Its constants: the defaults, or the preset its `params` names, with its
+        /// `follower_tolerance` (eq. 17b) if given.
+        params: GtParams,
     },
 }
 
@@ -502,11 +505,7 @@ impl Scenario {
             let driver = match spec.driver {
                 DriverSpec::Agent(_) => Driver::Agent(AgentCommand::Track),
                 DriverSpec::Idm => Driver::Idm,
-                DriverSpec::Gt { game, role, follower_tolerance } => {
-                    let mut params = GtParams::default();
-                    params.decision.game.follower_tolerance = follower_tolerance;
-                    Driver::Gt(Box::new(GtDriver::new(game, role, params)))
-                }
+                DriverSpec::Gt { game, role, params } => Driver::Gt(Box::new(GtDriver::new(game, role, params))),
             };
             let mut vehicle = Vehicle::new(&spec.name, &self.road, spec.lane, spec.s, spec.speed, spec.style, driver);
             vehicle.state.d = spec.d;
@@ -817,17 +816,24 @@ impl VehicleFile {
                 detail: format!("s = {s} is outside lane {} (0..={})", lane.0, road.lane_end(lane)),
             });
         }
-        let (style, driver) = match self.driver {
-            DriverFile::Agent { style, action } => (style, DriverSpec::Agent(action)),
-            DriverFile::Idm { style } => (style, DriverSpec::Idm),
-            DriverFile::Gt { style, game, role, follower_tolerance } => {
-                if !(follower_tolerance.is_finite() && follower_tolerance >= 0.0) {
-                    return Err(invalid(
-                        "driver.follower_tolerance",
-                        format!("must be a number >= 0, not {follower_tolerance}"),
-                    ));
+        let (style, driver) = match &self.driver {
+            &DriverFile::Agent { style, action } => (style, DriverSpec::Agent(action)),
+            &DriverFile::Idm { style } => (style, DriverSpec::Idm),
+            &DriverFile::Gt { style, game, role, follower_tolerance, ref params } => {
+                let mut constants = match params {
+                    Some(name) => crate::preset::load(name).map_err(|e| invalid("driver.params", e.to_string()))?.gt,
+                    None => GtParams::default(),
+                };
+                if let Some(tolerance) = follower_tolerance {
+                    if !(tolerance.is_finite() && tolerance >= 0.0) {
+                        return Err(invalid(
+                            "driver.follower_tolerance",
+                            format!("must be a number >= 0, not {tolerance}"),
+                        ));
+                    }
+                    constants.decision.game.follower_tolerance = tolerance;
                 }
-                (style, DriverSpec::Gt { game, role, follower_tolerance })
+                (style, DriverSpec::Gt { game, role, params: constants })
             }
         };
         Ok(VehicleSpec { name: self.name.clone(), lane, s, d, speed: self.speed, target_speed, style, driver })

@@ -391,7 +391,7 @@ fn drive_learners(episode: &mut Scenario, policy: BuiltinPolicy) {
                         arena_protocol::Style::Conservative => Style::Conservative,
                     };
                 }
-                DriverSpec::Gt { game: game(g), role: Role::Leader, follower_tolerance: 0.0 }
+                DriverSpec::Gt { game: game(g), role: Role::Leader, params: Default::default() }
             }
             BuiltinPolicy::Idm => DriverSpec::Idm,
         };

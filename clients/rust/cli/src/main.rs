@@ -9,7 +9,7 @@ mod record;
 mod soak;
 
 /// Command-line client of highway-arena. `bench`, `eval`, `play` and `soak` talk to a running
-/// `arena-server` (start one with `arena-server`); `paper` runs in process.
+/// `arena-server` (start one with `arena-server`); `paper` and `calibrate` run in process.
 #[derive(Debug, Parser)]
 #[command(name = "arena", version, about)]
 struct Cli {
@@ -36,6 +36,9 @@ enum Command {
     Play(play::PlayArgs),
     /// Reproduce the paper's Scenario A and B tables and plots, in process.
     Paper(arena_paper::report::PaperArgs),
+    /// Fit the constants the paper leaves open to its Tables IV and VI (seeded particle
+    /// swarm), print every cell ours | paper, and write the fit as a parameter preset.
+    Calibrate(arena_paper::calibrate::CalibrateArgs),
 }
 
 /// A client on `flags` and the server it found: within the connect timeout, or an error
@@ -70,5 +73,6 @@ fn main() -> anyhow::Result<()> {
         Command::Record(args) => record::run(args),
         Command::Soak(args) => soak::run(args),
         Command::Paper(args) => arena_paper::report::run(args),
+        Command::Calibrate(args) => arena_paper::calibrate::run(args),
     }
 }

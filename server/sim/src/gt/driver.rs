@@ -51,6 +51,49 @@ pub struct GtParams {
     pub interaction: InteractionParams,
 }
 
+impl GtParams {
+    /// Checks the constants a preset or a fit may set: `Err` names the first one out of
+    /// its range (dotted path below `GtParams`) and says why.
+    pub fn check(&self) -> Result<(), String> {
+        let (c, p, g) = (&self.decision.costs, &self.decision.prediction, &self.decision.game);
+        let positive = [
+            ("decision.costs.kappa_v_log", c.kappa_v_log),
+            ("decision.costs.kappa_s_log", c.kappa_s_log),
+            ("decision.costs.kappa_v_lat", c.kappa_v_lat),
+            ("decision.costs.kappa_s_lat", c.kappa_s_lat),
+            ("decision.costs.kappa_ax", c.kappa_ax),
+            ("decision.costs.kappa_ay", c.kappa_ay),
+            ("decision.costs.epsilon", c.epsilon),
+            ("decision.prediction.horizon", p.horizon),
+            ("decision.game.accel_max", g.accel_max),
+            ("decision.game.accel_step", g.accel_step),
+            ("interaction.interaction_range", self.interaction.interaction_range),
+        ];
+        for (key, value) in positive {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(format!("{key} must be a number > 0, not {value}"));
+            }
+        }
+        let non_negative = [
+            ("decision.costs.lead_range", c.lead_range),
+            ("decision.game.follower_tolerance", g.follower_tolerance),
+            ("decision.game.speed_min", g.speed_min),
+        ];
+        for (key, value) in non_negative {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(format!("{key} must be a number >= 0, not {value}"));
+            }
+        }
+        if !(g.accel_min.is_finite() && g.accel_min < 0.0) {
+            return Err(format!("decision.game.accel_min must be a number < 0, not {}", g.accel_min));
+        }
+        if p.samples == 0 {
+            return Err("decision.prediction.samples must be at least 1".to_string());
+        }
+        Ok(())
+    }
+}
+
 /// What the driver reports about its last plan.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Diagnostics {

@@ -52,14 +52,40 @@ pub struct GameParams {
     /// v_min of eq. (15) (m/s). 0: cars do not reverse. v_max is each lane's speed limit.
     pub speed_min: f64,
     /// Relative tolerance on the follower's best-response set gamma of eq. (17b): AC
-    /// replies are kept whose cost is within (1 + tolerance) of the best. 0 (off): eq.
-    /// (17b) exactly. An option for docs/paper-reproduction.md's comparison.
+    /// replies are kept whose cost is within (1 + tolerance) of the best, and the leader
+    /// guards against the worst of them. 0.3, chosen here: the smallest of 0.1, 0.2, 0.3
+    /// under which every Stackelberg lane change of Scenarios A and B comes later than its
+    /// Nash twin with a larger gap, as the paper's do (docs/paper-reproduction.md, "Nash
+    /// against Stackelberg"); with 0 (eq. 17b exactly) the two games give the same runs.
     pub follower_tolerance: f64,
+    /// Whether AC's lateral safety term of eq. (12) is switched by EC's sigma^2 as EC's
+    /// is (eq. 10), or always paid. `switched`, the reading of "AC's lateral safety cost
+    /// equals EC's" (docs/paper-reproduction.md, "Nash against Stackelberg").
+    #[serde(default)]
+    pub adjacent_lateral: AdjacentLateral,
+}
+
+/// How AC pays the lateral term of eq. (12) (§IV-A leaves it open; docs/paper-reproduction.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AdjacentLateral {
+    /// As EC's: times sigma^2, so zero while EC keeps its lane.
+    #[default]
+    Switched,
+    /// Always, whatever EC decides (the sigma^2-free reading).
+    Always,
 }
 
 impl Default for GameParams {
     fn default() -> Self {
-        GameParams { accel_min: -4.0, accel_max: 3.0, accel_step: 0.25, speed_min: 0.0, follower_tolerance: 0.0 }
+        GameParams {
+            accel_min: -4.0,
+            accel_max: 3.0,
+            accel_step: 0.25,
+            speed_min: 0.0,
+            follower_tolerance: 0.3,
+            adjacent_lateral: AdjacentLateral::Switched,
+        }
     }
 }
 
@@ -473,7 +499,9 @@ impl Situation {
         let mut keeping: Option<(Vec<f64>, usize)> = None;
         for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
             let replies = &mut table.ac[row * cols..(row + 1) * cols];
-            let reply = if let (0, Some((alone, reply))) = (sigma, &keeping) {
+            let reply = if let (0, Some((alone, reply)), AdjacentLateral::Switched) =
+                (sigma, &keeping, params.game.adjacent_lateral)
+            {
                 replies.copy_from_slice(alone);
                 *reply
             } else if sigma == 0 || needs == Needs::All {
@@ -713,7 +741,10 @@ impl Situation {
         let mut ac_sum = 0.0;
         for (k, &ego) in ec_path.iter().enumerate() {
             let ac = ac_path[k];
-            let lateral = self.lateral(c, sigma, ego, Some(ac));
+            let lateral = match cell.params.game.adjacent_lateral {
+                AdjacentLateral::Switched => self.lateral(c, sigma, ego, Some(ac)),
+                AdjacentLateral::Always => costs::lateral_safety(c, self.car_length, ego, ac),
+            };
             ac_sum += self.ac_cost(samples, k, ego, ac, &adj, sigma, ac_comfort, lateral, c);
         }
         ac_sum / ec_path.len().max(1) as f64
@@ -746,11 +777,13 @@ impl Situation {
         if sigma != 0 {
             v_bar = v_bar.min(costs::target_speed(c, ac, limit, Some(ego)));
         }
-        let parts = CostComponents {
-            safety: costs::safety(sigma, longitudinal, lateral),
-            comfort,
-            efficiency: costs::efficiency(ac.speed, v_bar),
+        // eq. (10) for AC; with `AdjacentLateral::Always` the lateral term is paid in
+        // full while EC keeps its lane too (sigma = 0 drops it from `costs::safety`).
+        let safety = match sigma {
+            0 => costs::safety(0, longitudinal, 0.0) + lateral,
+            _ => costs::safety(sigma, longitudinal, lateral),
         };
+        let parts = CostComponents { safety, comfort, efficiency: costs::efficiency(ac.speed, v_bar) };
         parts.weighted_by(&adj.player.weights)
     }
 

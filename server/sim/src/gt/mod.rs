@@ -40,7 +40,7 @@ pub use driver::{
     Diagnostics, GtDriver, GtParams, GtStep, InteractionParams, decide, expert_decision, plan, plan_motion, stage_cost,
 };
 pub use field::FieldParams;
-pub use games::{Decision, DecisionParams, Game, GameParams, Needs};
+pub use games::{AdjacentLateral, Decision, DecisionParams, Game, GameParams, Needs};
 pub use mpc::{Mpc, MpcError, MpcParams, MpcSolution};
 pub use prediction::PredictionParams;
 pub use styles::{CostWeights, StyleProfile};

@@ -245,8 +245,9 @@ fn defaults_are_the_documented_ones() {
     assert_eq!((pr.horizon, pr.samples, crate::dynamics::LANE_CHANGE_DURATION), (3.0, 6, 4.0));
     assert_eq!(
         [g.accel_min, g.accel_max, g.accel_step, g.speed_min, g.follower_tolerance],
-        [-4.0, 3.0, 0.25, 0.0, 0.0]
+        [-4.0, 3.0, 0.25, 0.0, 0.3]
     );
+    assert_eq!(g.adjacent_lateral, crate::gt::AdjacentLateral::Switched);
     let f = p.field;
     assert_eq!(
         [f.obstacle_peak, f.rho_x, f.rho_y, f.shape, f.speed_skew, f.edge_peak, f.line_peak, f.safety_threshold],
@@ -366,9 +367,10 @@ fn the_fast_search_decides_exactly_as_the_full_tables_do() {
     let mut lane_changes = 0;
     for _ in 0..1500 {
         let situation = random_situation(&mut next);
-        for tolerance in [0.0, 0.1] {
+        for (tolerance, lateral) in [(0.0, AdjacentLateral::Switched), (0.1, AdjacentLateral::Always)] {
             let mut params = DecisionParams::default();
             params.game.follower_tolerance = tolerance;
+            params.game.adjacent_lateral = lateral;
             for game in Game::ALL {
                 let fast = situation.decide(game, &params);
                 let full = situation.decide_reading(game, &params, Needs::All);

@@ -200,7 +200,7 @@ fn a_gt_driver_loads_with_its_game_and_role() {
         "driver = { kind = \"gt\", style = \"aggressive\", game = \"stackelberg\" }",
     );
     let scenario = parse(&text).unwrap();
-    let expected = DriverSpec::Gt { game: Game::Stackelberg, role: Role::Leader, follower_tolerance: 0.0 };
+    let expected = DriverSpec::Gt { game: Game::Stackelberg, role: Role::Leader, params: GtParams::default() };
     assert_eq!((scenario.vehicles[0].driver, scenario.vehicles[0].style), (expected, Style::Aggressive));
     let text =
         with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\", game = \"nash\", role = \"follower\" }");
@@ -225,6 +225,31 @@ fn a_bad_gt_driver_is_refused_with_the_reason() {
         "driver = { kind = \"gt\", game = \"nash\", follower_tolerance = -0.5 }",
     ));
     assert!(tolerance.contains("vehicle 'a'.driver.follower_tolerance") && tolerance.contains("-0.5"), "{tolerance}");
+    let preset = error(&with(
+        "driver = { kind = \"agent\" }",
+        "driver = { kind = \"gt\", game = \"nash\", params = \"paper-fitt\" }",
+    ));
+    assert!(
+        preset.contains("driver.params") && preset.contains("'paper-fitt'") && preset.contains("paper-fit"),
+        "{preset}"
+    );
+}
+
+#[test]
+fn a_gt_driver_takes_its_constants_from_a_preset_and_its_own_tolerance() {
+    let text = with(
+        "driver = { kind = \"agent\" }",
+        "driver = { kind = \"gt\", game = \"stackelberg\", params = \"paper-fit\", follower_tolerance = 0.7 }",
+    );
+    let scenario = parse(&text).unwrap();
+    let mut expected = arena_preset_gt("paper-fit");
+    expected.decision.game.follower_tolerance = 0.7;
+    let DriverSpec::Gt { params, .. } = scenario.vehicles[0].driver else { panic!("a gt driver") };
+    assert_eq!(params, expected);
+}
+
+fn arena_preset_gt(name: &str) -> GtParams {
+    crate::preset::load(name).unwrap().gt
 }
 
 #[test]

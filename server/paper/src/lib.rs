@@ -195,8 +195,7 @@ pub fn world(
     ec.insert("kind".into(), "gt".into());
     ec.insert("style".into(), style.name().into());
     ec.insert("game".into(), game.name().into());
-    let mut overrides = options.scenario_overrides.get(scenario.file()).cloned().unwrap_or_default();
-    overrides.push(("vehicle.ec_0.driver".to_string(), toml::Value::Table(ec)));
+    let mut overrides = vec![("vehicle.ec_0.driver".to_string(), toml::Value::Table(ec))];
     for (name, _) in &scenario.roles()[1..] {
         let mut ac = toml::Table::new();
         ac.insert("kind".into(), "gt".into());
@@ -205,6 +204,8 @@ pub fn world(
         ac.insert("role".into(), "follower".into());
         overrides.push((format!("vehicle.{name}.driver"), toml::Value::Table(ac)));
     }
+    // A preset's own, last: they may set a field of the drivers above (an AC's style).
+    overrides.extend(options.scenario_overrides.get(scenario.file()).cloned().unwrap_or_default());
     let (_, file, text) = BUILTIN.iter().find(|(name, ..)| *name == scenario.file()).copied().unwrap_or(BUILTIN[0]);
     let text = options.scenario_text.as_deref().unwrap_or(text);
     let mut parsed = Scenario::parse(file, text, &overrides)?;

@@ -40,6 +40,7 @@ fn spec(knobs: &[&str], target: Target, start: PaperOptions, seed: u64, jobs: us
         knobs: knobs.iter().map(|k| knob(k).unwrap()).collect(),
         target,
         start,
+        seeds: Vec::new(),
         particles: 8,
         iterations: 10,
         spread: 0.3,
@@ -92,10 +93,17 @@ fn a_written_preset_reads_back_as_the_fit() {
     let mut options = PaperOptions::default();
     knob("costs.kappa_ax").unwrap().set(&mut options, 12.5);
     knob("overtake.ac2.target_speed").unwrap().set(&mut options, 23.0);
+    knob("overtake.adjacent.style").unwrap().set(&mut options, 0.0);
     let text = calibrate::preset_text("t", "a test", &options);
     let preset = arena_sim::preset::parse("t", &text).unwrap();
     let read = PaperOptions::with_preset(&preset);
     assert_eq!(read.params, options.params);
     assert_eq!(knob("overtake.ac2.target_speed").unwrap().get(&read), 23.0);
     assert_eq!(knob("merge.ac.target_speed").unwrap().get(&read), 22.0, "unset: the file's");
+    assert_eq!(knob("overtake.adjacent.style").unwrap().get(&read), 0.0, "aggressive");
+    assert_eq!(knob("merge.adjacent.style").unwrap().get(&read), 1.0, "unset: normal, the paper runs' default");
+    let records = records(&[PaperScenario::B], &read).unwrap();
+    assert!(records.iter().all(|r| r.diagnostics.len() == 3), "the style reaches the runs' drivers");
+    let unknown = knob("costs.kappa_q").unwrap_err().to_string();
+    assert!(unknown.contains("'costs.kappa_q'") && unknown.contains("costs.kappa_ax"), "{unknown}");
 }

@@ -318,6 +318,9 @@ pub struct VehicleSpec {
 
 /// Who drives a named vehicle.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// A spec is built once per scenario and copied into a driver: the size of the `Gt`
+// variant (its constants, by value so the spec stays plain `Copy` data) costs nothing.
+#[allow(clippy::large_enum_variant)]
 pub enum DriverSpec {
     /// A learner, through the env.
     Agent(ActionKind),
@@ -817,14 +820,14 @@ impl VehicleFile {
             });
         }
         let (style, driver) = match &self.driver {
-            &DriverFile::Agent { style, action } => (style, DriverSpec::Agent(action)),
-            &DriverFile::Idm { style } => (style, DriverSpec::Idm),
-            &DriverFile::Gt { style, game, role, follower_tolerance, ref params } => {
+            DriverFile::Agent { style, action } => (*style, DriverSpec::Agent(*action)),
+            DriverFile::Idm { style } => (*style, DriverSpec::Idm),
+            DriverFile::Gt { style, game, role, follower_tolerance, params } => {
                 let mut constants = match params {
                     Some(name) => crate::preset::load(name).map_err(|e| invalid("driver.params", e.to_string()))?.gt,
                     None => GtParams::default(),
                 };
-                if let Some(tolerance) = follower_tolerance {
+                if let Some(tolerance) = *follower_tolerance {
                     if !(tolerance.is_finite() && tolerance >= 0.0) {
                         return Err(invalid(
                             "driver.follower_tolerance",
@@ -833,7 +836,7 @@ impl VehicleFile {
                     }
                     constants.decision.game.follower_tolerance = tolerance;
                 }
-                (style, DriverSpec::Gt { game, role, params: constants })
+                (*style, DriverSpec::Gt { game: *game, role: *role, params: constants })
             }
         };
         Ok(VehicleSpec { name: self.name.clone(), lane, s, d, speed: self.speed, target_speed, style, driver })

@@ -84,7 +84,7 @@ pub fn load(name_or_file: &str) -> Result<Preset, PresetError> {
     match BUILTIN_PRESETS.iter().find(|(name, _)| *name == name_or_file) {
         Some((_, text)) => parse(name_or_file, text),
         None => Err(fail(format!(
-            "no such built-in preset; choose one of {} or give a path to a .toml preset file",
+            "no such built-in preset; choose one of {}, or give a path to a .toml preset file",
             builtin_names().join(", ")
         ))),
     }

@@ -45,7 +45,7 @@ def make_env(config):
         overrides=TWO_LEARNERS,
         seed=1000 * config.worker_index + config.vector_index,
     )
-    print(f"env runner {config.worker_index}: env on server {env._connection.server}", file=sys.stderr, flush=True)
+    print(f"env runner {config.worker_index}: env on server {env.server}", file=sys.stderr, flush=True)
     return ParallelPettingZooEnv(env)
 
 

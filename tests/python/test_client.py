@@ -35,7 +35,7 @@ def test_a_server_that_dies_gives_an_error_naming_it_at_once_and_close_stays_qui
     with highway_arena.launch_server() as doomed:
         env = highway_arena.parallel_env("merge", connect=doomed.endpoint)
         env.reset(seed=0)
-        server_id = env._connection.server
+        server_id = env.server
         doomed.process.send_signal(signal.SIGKILL)
         doomed.process.wait()
         started = time.monotonic()

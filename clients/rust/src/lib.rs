@@ -326,21 +326,18 @@ impl Client {
     /// ties to the fewest envs, then an order of this client's own (see
     /// `placement::spread`). Waits up to the timeout for a first server.
     pub async fn place(&self, count: usize) -> Result<Vec<String>> {
-        let deadline = Instant::now() + self.inner.timeout;
-        let mut infos = self.server_infos().await?;
-        while infos.is_empty() {
-            if Instant::now() >= deadline {
-                return Err(ClientError::NoServer { prefix: self.inner.prefix.clone() });
-            }
-            tokio::time::sleep(Duration::from_millis(50)).await;
-            infos = self.server_infos().await?;
+        self.pick_server().await?;
+        let infos = self.server_infos().await?;
+        if infos.is_empty() {
+            return Err(ClientError::NoServer { prefix: self.inner.prefix.clone() });
         }
         let placed = placement::spread(&infos, count, self.inner.id.tag());
         if placed.len() < count {
             return Err(ClientError::Server(ErrorReply {
                 code: ErrorCode::TooManyEnvs,
                 message: format!(
-                    "the {} server(s) found have room for {} more env(s), not {count}: each holds its --max-envs",
+                    "the {} server(s) found have room for {} more env(s), not {count} (each holds at most its \
+                     --max-envs): close envs you no longer need, or start another server",
                     infos.len(),
                     placed.len()
                 ),
@@ -400,8 +397,10 @@ impl Client {
             .map_err(zenoh_error)?;
         // An error reply (Zenoh's own timeout among them) counts as no reply: the request
         // is retried like a missing one, and `call` says what happened in the end.
+        // The server id is its session's Zenoh id (parsed once, not printed per reply).
+        let expected = server.parse::<zenoh::session::ZenohId>().ok();
         while let Ok(reply) = replies.recv_async().await {
-            let from_server = reply.replier_id().is_some_and(|replier| replier.zid().to_string() == server);
+            let from_server = expected.is_some_and(|id| reply.replier_id().is_some_and(|replier| replier.zid() == id));
             if let (true, Ok(sample)) = (from_server, reply.result()) {
                 return Ok(Some(sample.payload().to_bytes().into_owned()));
             }

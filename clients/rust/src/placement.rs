@@ -32,7 +32,8 @@ pub fn spread(servers: &[ServerInfo], count: usize, client: ClientTag) -> Vec<St
             id: s.server_id.as_str(),
         })
         .collect();
-    let mut placed = Vec::with_capacity(count);
+    let room: u128 = load.iter().map(|server| server.room).sum();
+    let mut placed = Vec::with_capacity(count.min(usize::try_from(room).unwrap_or(usize::MAX)));
     for _ in 0..count {
         let open = (0..load.len()).filter(|&i| load[i].room > 0);
         let Some(best) = open.min_by(|&a, &b| lighter(&load[a], &load[b])) else { break };

@@ -40,6 +40,8 @@ impl Default for Limits {
 struct Slot {
     env: Env,
     owner: ClientId,
+    /// `owner.tag()`, what its liveliness token shows: computed once, read when clients leave.
+    owner_tag: ClientTag,
     /// The last mutating request's sequence number and its reply.
     last: Option<(u64, ReplyBody)>,
     last_used: Instant,
@@ -329,7 +331,7 @@ impl Registry {
         let mut envs = lock(&self.envs);
         // Again under the lock: another create may have taken the last place meanwhile.
         self.has_room(envs.len(), owner)?;
-        let slot = Slot { env, owner, last: None, last_used: Instant::now() };
+        let slot = Slot { env, owner, owner_tag: owner.tag(), last: None, last_used: Instant::now() };
         envs.insert(id, Arc::new(Mutex::new(slot)));
         *lock(&self.held).entry(owner).or_default() += 1;
         Ok(ReplyBody::Created { env: id, specs })
@@ -505,7 +507,7 @@ impl Registry {
     /// Closes every env of the client whose public tag is `client` (its liveliness token
     /// is gone); returns how many.
     pub fn drop_client(&self, client: ClientTag) -> usize {
-        self.retain(|slot| slot.owner.tag() != client)
+        self.retain(|slot| slot.owner_tag != client)
     }
 
     /// Closes envs idle for longer than the limit; returns how many.

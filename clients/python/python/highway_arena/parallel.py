@@ -293,6 +293,11 @@ class ParallelEnv(_ParallelEnv):
         _, height, width, data = frame
         return np.frombuffer(data, dtype=np.uint8).reshape(height, width, 3).copy()
 
+    @property
+    def server(self):
+        """The id of the server this env lives on (placement picks the least loaded)."""
+        return self._connection.server
+
     @translated
     def state(self):
         return _convert.observation(self._env.state())

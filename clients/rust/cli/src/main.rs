@@ -49,6 +49,9 @@ fn connect(
     use anyhow::Context;
     use arena_protocol::session::{DEFAULT_CONNECT_TIMEOUT, Role};
     let where_ = flags.endpoints(Role::Client).join(", ");
+    // A bad endpoint or an unreadable --zenoh-config is said as it is, not as a router that
+    // did not answer.
+    flags.zenoh_config(Role::Client).map_err(anyhow::Error::msg)?;
     let client = arena_client::blocking::Client::connect(flags).with_context(|| {
         format!(
             "cannot open a Zenoh session to {where_}: is the router running and listening there, and does \

@@ -8,8 +8,16 @@
 //! `1 / (1 - curvature * d)` factor, so the driver of eq. (1) previews the lane, not the
 //! global Y axis (docs/design.md, "Frenet frame").
 
+use std::ops::{Add, Mul};
+
 use nalgebra::{SMatrix, SVector};
 use serde::{Deserialize, Serialize};
+
+mod fleet;
+mod lanes;
+
+pub use fleet::Fleet;
+use lanes::Lanes;
 
 /// Number of states: [vx, vy, r, heading, s, d, steer, steer_rate] (eq. 8's x).
 pub const STATES: usize = 8;
@@ -200,130 +208,172 @@ impl VehicleState {
 
     /// Lateral acceleration in the body frame (m/s^2): v_y' + v_x r.
     pub fn lateral_accel(&self, vehicle: &VehicleParams) -> f64 {
-        let x = self.to_array();
+        let x = lanes_of(&self.to_array());
         let model = Model::new(vehicle, &DriverParams::default());
         let (front, rear, _) = lateral_forces(&x, &model);
-        let dx = body_derivative(&x, (front, rear), self.steer.cos(), 0.0, &model);
-        dx[1] + self.vx * self.yaw_rate
+        let (_, cos_steer) = lanes::sin_cos(x[6]);
+        let dx = body_derivative(&x, (front, rear), cos_steer, Lanes([0.0]), &model);
+        dx[1].0[0] + self.vx * self.yaw_rate
     }
 }
 
-/// sin and cos of the heading and cos of the steering angle: the only transcendental
-/// values f needs. RK4's stages sit within a few milliradians of the step's start, so
-/// `near` rotates the start's values by the small difference (series to 1e-18) instead
-/// of calling libm three times per stage, which was half of the world step's time.
-#[derive(Debug, Clone, Copy)]
-struct Angles {
-    heading: (f64, f64),
-    steer: (f64, f64),
+/// The 8 states of eq. (8) for N vehicles: one `Lanes` per state.
+type StateLanes<const N: usize> = [Lanes<N>; STATES];
+
+fn lanes_of(x: &Vector8) -> StateLanes<1> {
+    x.map(|value| Lanes([value]))
 }
 
-impl Angles {
-    fn of(heading: f64, steer: f64) -> Angles {
-        Angles { heading: heading.sin_cos(), steer: steer.sin_cos() }
-    }
-
-    fn near(&self, heading: f64, base_heading: f64, steer: f64, base_steer: f64) -> Angles {
-        const SMALL: f64 = 0.01;
-        let (dh, ds) = (heading - base_heading, steer - base_steer);
-        if dh.abs() > SMALL || ds.abs() > SMALL {
-            return Angles::of(heading, steer);
-        }
-        Angles { heading: rotate(self.heading, dh), steer: rotate(self.steer, ds) }
-    }
+fn array_of(x: &StateLanes<1>) -> Vector8 {
+    x.map(|lane| lane.0[0])
 }
 
-/// (sin, cos) of a + delta from (sin a, cos a), for |delta| <= 0.01.
-#[inline]
-fn rotate((sin, cos): (f64, f64), delta: f64) -> (f64, f64) {
-    let d2 = delta * delta;
-    // Multiplying by folded constants: a division here would cost more than libm saves.
-    let sin_delta = delta * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0))));
-    let cos_delta = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
-    (sin * cos_delta + cos * sin_delta, cos * cos_delta - sin * sin_delta)
-}
-
-/// The constants of f for one vehicle and driver, with their reciprocals taken once:
+/// The constants of f for N vehicles and their drivers, with reciprocals taken once:
 /// f is evaluated four times per RK4 step, and divisions were most of its cost.
-#[derive(Debug, Clone, Copy)]
-struct Model {
-    front_axle: f64,
-    rear_axle: f64,
-    front_stiffness: f64,
-    rear_stiffness: f64,
-    inv_mass: f64,
-    inv_inertia: f64,
-    guard: f64,
-    inv_guard: f64,
-    max_steer: f64,
-    preview_time: f64,
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Model<const N: usize> {
+    front_axle: Lanes<N>,
+    rear_axle: Lanes<N>,
+    front_stiffness: Lanes<N>,
+    rear_stiffness: Lanes<N>,
+    inv_mass: Lanes<N>,
+    inv_inertia: Lanes<N>,
+    guard: Lanes<N>,
+    inv_guard: Lanes<N>,
+    max_steer: Lanes<N>,
+    preview_time: Lanes<N>,
     /// 1 / (a T_d) and 1 / (a T_d^2) of eq. (1).
-    rate_gain: f64,
-    angle_gain: f64,
+    rate_gain: Lanes<N>,
+    angle_gain: Lanes<N>,
     /// K_0 v_ref G_s / (a T_d^2): eq. (1)'s preview gain times v_x, as K_s = K_0 v_ref / v_x.
-    preview_gain: f64,
+    preview_gain: Lanes<N>,
 }
 
-impl Model {
-    fn new(vehicle: &VehicleParams, driver: &DriverParams) -> Model {
+impl Model<1> {
+    fn new(vehicle: &VehicleParams, driver: &DriverParams) -> Model<1> {
         let DriverParams { delay, preview_time, steering_gain, damping, steering_ratio, reference_speed } = *driver;
+        let lane = |value: f64| Lanes([value]);
         Model {
-            front_axle: vehicle.front_axle,
-            rear_axle: vehicle.rear_axle,
-            front_stiffness: vehicle.front_stiffness,
-            rear_stiffness: vehicle.rear_stiffness,
-            inv_mass: 1.0 / vehicle.mass,
-            inv_inertia: 1.0 / vehicle.yaw_inertia,
-            guard: vehicle.low_speed_guard,
-            inv_guard: 1.0 / vehicle.low_speed_guard,
-            max_steer: vehicle.max_steer,
-            preview_time,
-            rate_gain: 1.0 / (damping * delay),
-            angle_gain: 1.0 / (damping * delay * delay),
-            preview_gain: steering_ratio * reference_speed * steering_gain / (damping * delay * delay),
+            front_axle: lane(vehicle.front_axle),
+            rear_axle: lane(vehicle.rear_axle),
+            front_stiffness: lane(vehicle.front_stiffness),
+            rear_stiffness: lane(vehicle.rear_stiffness),
+            inv_mass: lane(1.0 / vehicle.mass),
+            inv_inertia: lane(1.0 / vehicle.yaw_inertia),
+            guard: lane(vehicle.low_speed_guard),
+            inv_guard: lane(1.0 / vehicle.low_speed_guard),
+            max_steer: lane(vehicle.max_steer),
+            preview_time: lane(preview_time),
+            rate_gain: lane(1.0 / (damping * delay)),
+            angle_gain: lane(1.0 / (damping * delay * delay)),
+            preview_gain: lane(steering_ratio * reference_speed * steering_gain / (damping * delay * delay)),
+        }
+    }
+}
+
+impl<const N: usize> Model<N> {
+    fn fields_mut(&mut self) -> [&mut Lanes<N>; 13] {
+        [
+            &mut self.front_axle,
+            &mut self.rear_axle,
+            &mut self.front_stiffness,
+            &mut self.rear_stiffness,
+            &mut self.inv_mass,
+            &mut self.inv_inertia,
+            &mut self.guard,
+            &mut self.inv_guard,
+            &mut self.max_steer,
+            &mut self.preview_time,
+            &mut self.rate_gain,
+            &mut self.angle_gain,
+            &mut self.preview_gain,
+        ]
+    }
+
+    /// Every lane holds the constants of `one`.
+    fn splat(one: &Model<1>) -> Model<N> {
+        let mut model = Model::default();
+        let mut one = *one;
+        for (field, value) in model.fields_mut().into_iter().zip(one.fields_mut()) {
+            *field = Lanes::splat(value.0[0]);
+        }
+        model
+    }
+
+    /// Lanes `from..from + N` of a model of more vehicles.
+    #[inline(always)]
+    fn part<const WIDE: usize>(wide: &Model<WIDE>, from: usize) -> Model<N> {
+        let mut model = Model::default();
+        let mut wide = *wide;
+        for (field, value) in model.fields_mut().into_iter().zip(wide.fields_mut()) {
+            *field = Lanes::part(value, from);
+        }
+        model
+    }
+
+    /// Lane `lane` takes the constants of `one`.
+    fn set_lane(&mut self, lane: usize, one: &Model<1>) {
+        let mut one = *one;
+        for (field, value) in self.fields_mut().into_iter().zip(one.fields_mut()) {
+            field.0[lane] = value.0[0];
         }
     }
 }
 
 /// Tyre forces of eq. (4)–(5), faded out below the low-speed guard; also 1 / v_x guarded.
-#[inline]
-fn lateral_forces(x: &Vector8, model: &Model) -> (f64, f64, f64) {
+#[inline(always)]
+fn lateral_forces<const N: usize>(x: &StateLanes<N>, model: &Model<N>) -> (Lanes<N>, Lanes<N>, Lanes<N>) {
     let [vx, vy, r, _, _, _, steer, _] = *x;
-    let inv_speed = 1.0 / vx.max(model.guard);
-    let fade = (vx * model.inv_guard).clamp(0.0, 1.0);
+    let inv_speed = Lanes::splat(1.0) / vx.max(model.guard);
+    let fade = (vx * model.inv_guard).clamp(Lanes::splat(0.0), Lanes::splat(1.0));
     let front_slip = -steer + (vy + model.front_axle * r) * inv_speed; // eq. (5)
     let rear_slip = (vy - model.rear_axle * r) * inv_speed; // eq. (5)
     (-model.front_stiffness * front_slip * fade, -model.rear_stiffness * rear_slip * fade, inv_speed) // eq. (4)
 }
 
 /// Rows 1–3 of eq. (8) (eq. 2 with eq. 3): the body's speeds. A car does not reverse.
-#[inline]
-fn body_derivative(x: &Vector8, forces: (f64, f64), cos_steer: f64, accel: f64, model: &Model) -> [f64; 3] {
+#[inline(always)]
+fn body_derivative<const N: usize>(
+    x: &StateLanes<N>,
+    (front, rear): (Lanes<N>, Lanes<N>),
+    cos_steer: Lanes<N>,
+    accel: Lanes<N>,
+    model: &Model<N>,
+) -> [Lanes<N>; 3] {
     let [vx, vy, r, ..] = *x;
-    let (front, rear) = forces;
-    let mut vx_dot = vy * r + accel;
-    if vx <= 0.0 && vx_dot < 0.0 {
-        vx_dot = 0.0;
-    }
+    let vx_dot = vy * r + accel;
+    let stopped = lanes::mask(|i| vx.0[i] <= 0.0 && vx_dot.0[i] < 0.0);
     [
-        vx_dot,
+        Lanes::select(stopped, Lanes::splat(0.0), vx_dot),
         -vx * r + (front * cos_steer + rear) * model.inv_mass,
         (model.front_axle * front * cos_steer - model.rear_axle * rear) * model.inv_inertia,
     ]
 }
 
 /// Rows 4–6 of eq. (8) (eq. 6), written in the Frenet frame of a lane with `curvature`.
-#[inline]
-fn pose_derivative(x: &Vector8, (sin, cos): (f64, f64), curvature: f64) -> [f64; 3] {
+#[inline(always)]
+fn pose_derivative<const N: usize>(
+    x: &StateLanes<N>,
+    (sin, cos): (Lanes<N>, Lanes<N>),
+    curvature: Lanes<N>,
+) -> [Lanes<N>; 3] {
     let [vx, vy, r, _, _, d, _, _] = *x;
     let along = vx * cos - vy * sin;
-    let s_dot = if curvature == 0.0 { along } else { along / (1.0 - curvature * d) };
+    // Dividing by 1 - 0 d gives `along` exactly: skipping it on straight lanes saves a
+    // division and changes no bit.
+    let straight = curvature.0.iter().all(|&k| k == 0.0);
+    let s_dot = if straight { along } else { along / (Lanes::splat(1.0) - curvature * d) };
     [r - curvature * s_dot, s_dot, vx * sin + vy * cos]
 }
 
 /// Row 8 of eq. (8), taken from eq. (1) (docs/design.md, "Equation 1 against equation 8").
-#[inline]
-fn driver_derivative(x: &Vector8, preview: f64, inv_speed: f64, model: &Model) -> f64 {
+#[inline(always)]
+fn driver_derivative<const N: usize>(
+    x: &StateLanes<N>,
+    preview: Lanes<N>,
+    inv_speed: Lanes<N>,
+    model: &Model<N>,
+) -> Lanes<N> {
     let [vx, _, _, heading, _, d, steer, steer_rate] = *x;
     let predicted = d + model.preview_time * vx * heading;
     // eq. (1), with K_s = K_0 v_ref / v_x folded into preview_gain * inv_speed
@@ -331,7 +381,6 @@ fn driver_derivative(x: &Vector8, preview: f64, inv_speed: f64, model: &Model) -
 }
 
 /// f(x, u) of eq. (7)–(8) on a lane of the given curvature.
-#[inline]
 pub fn derivative(
     x: &Vector8,
     command: Command,
@@ -339,37 +388,113 @@ pub fn derivative(
     vehicle: &VehicleParams,
     driver: &DriverParams,
 ) -> Vector8 {
-    derivative_at(x, Angles::of(x[3], x[6]), command, curvature, &Model::new(vehicle, driver))
+    let inputs =
+        Inputs { accel: Lanes([command.accel]), preview: Lanes([command.preview]), curvature: Lanes([curvature]) };
+    array_of(&derivative_at(&lanes_of(x), &inputs, &Model::new(vehicle, driver)))
 }
 
-#[inline]
-fn derivative_at(x: &Vector8, angles: Angles, command: Command, curvature: f64, model: &Model) -> Vector8 {
+/// What a vehicle's f reads besides its state and constants, for N vehicles.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Inputs<const N: usize> {
+    accel: Lanes<N>,
+    preview: Lanes<N>,
+    curvature: Lanes<N>,
+}
+
+#[inline(always)]
+fn derivative_at<const N: usize>(x: &StateLanes<N>, inputs: &Inputs<N>, model: &Model<N>) -> StateLanes<N> {
+    let heading = lanes::sin_cos(x[3]);
+    let (_, cos_steer) = lanes::sin_cos(x[6]);
     let (front, rear, inv_speed) = lateral_forces(x, model);
-    let [vx_dot, vy_dot, r_dot] = body_derivative(x, (front, rear), angles.steer.1, command.accel, model);
-    let [heading_dot, s_dot, d_dot] = pose_derivative(x, angles.heading, curvature);
-    [vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, x[7], driver_derivative(x, command.preview, inv_speed, model)]
+    let [vx_dot, vy_dot, r_dot] = body_derivative(x, (front, rear), cos_steer, inputs.accel, model);
+    let [heading_dot, s_dot, d_dot] = pose_derivative(x, heading, inputs.curvature);
+    let steer_accel = driver_derivative(x, inputs.preview, inv_speed, model);
+    [vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, x[7], steer_accel]
 }
 
 /// The bicycle alone (eq. 2–6) with the steering angle held where it is.
 pub fn fixed_steer_derivative(x: &Vector8, accel: f64, curvature: f64, vehicle: &VehicleParams) -> Vector8 {
-    let angles = Angles::of(x[3], x[6]);
+    let x = lanes_of(x);
     let model = Model::new(vehicle, &DriverParams::default());
-    let (front, rear, _) = lateral_forces(x, &model);
-    let [vx_dot, vy_dot, r_dot] = body_derivative(x, (front, rear), angles.steer.1, accel, &model);
-    let [heading_dot, s_dot, d_dot] = pose_derivative(x, angles.heading, curvature);
-    [vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, 0.0, 0.0]
+    let heading = lanes::sin_cos(x[3]);
+    let (_, cos_steer) = lanes::sin_cos(x[6]);
+    let (front, rear, _) = lateral_forces(&x, &model);
+    let [vx_dot, vy_dot, r_dot] = body_derivative(&x, (front, rear), cos_steer, Lanes([accel]), &model);
+    let [heading_dot, s_dot, d_dot] = pose_derivative(&x, heading, Lanes([curvature]));
+    array_of(&[vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, Lanes([0.0]), Lanes([0.0])])
 }
 
-/// One classical Runge–Kutta step of `dt` for any right-hand side.
-#[inline]
-pub fn rk4(x: &Vector8, dt: f64, f: impl Fn(&Vector8) -> Vector8) -> Vector8 {
-    let offset = |k: &Vector8, h: f64| std::array::from_fn(|i| x[i] + h * k[i]);
-    let k1 = f(x);
-    let (half, sixth) = (dt * 0.5, dt * (1.0 / 6.0));
-    let k2 = f(&offset(&k1, half));
-    let k3 = f(&offset(&k2, half));
-    let k4 = f(&offset(&k3, dt));
-    std::array::from_fn(|i| x[i] + sixth * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+/// A right-hand side x' = f(x) for `rk4`: any closure, or `Closed` (a trait, not a
+/// closure, so that the world step's f is inlined into its vectorised caller).
+pub trait Derivative<T> {
+    /// f(x).
+    fn at(&self, x: &[T; STATES]) -> [T; STATES];
+}
+
+impl<T, F: Fn(&[T; STATES]) -> [T; STATES]> Derivative<T> for F {
+    #[inline(always)]
+    fn at(&self, x: &[T; STATES]) -> [T; STATES] {
+        self(x)
+    }
+}
+
+/// f of eq. (7)-(8) for N vehicles under fixed inputs: the closed loop RK4 integrates.
+struct Closed<'a, const N: usize> {
+    inputs: &'a Inputs<N>,
+    model: &'a Model<N>,
+}
+
+impl<const N: usize> Derivative<Lanes<N>> for Closed<'_, N> {
+    #[inline(always)]
+    fn at(&self, x: &StateLanes<N>) -> StateLanes<N> {
+        derivative_at(x, self.inputs, self.model)
+    }
+}
+
+/// One classical Runge–Kutta step of `dt` for any right-hand side, on one vehicle's
+/// states (`f64`) or N vehicles' (`Lanes<N>`).
+#[inline(always)]
+pub fn rk4<T>(x: &[T; STATES], dt: f64, f: impl Derivative<T>) -> [T; STATES]
+where
+    T: Copy + From<f64> + Add<Output = T> + Mul<Output = T>,
+{
+    #[inline(always)]
+    fn offset<T: Copy + From<f64> + Add<Output = T> + Mul<Output = T>>(
+        x: &[T; STATES],
+        k: &[T; STATES],
+        h: f64,
+    ) -> [T; STATES] {
+        let mut y = *x;
+        for (y, k) in y.iter_mut().zip(k) {
+            *y = *y + T::from(h) * *k;
+        }
+        y
+    }
+    // k1 + 2 k2 + 2 k3 + k4 summed as each k comes (the same order, so the same bits),
+    // which keeps fewer of them alive at once.
+    let (half, sixth, two) = (dt * 0.5, dt * (1.0 / 6.0), T::from(2.0));
+    let k = f.at(x);
+    let mut sum = k;
+    let k = f.at(&offset(x, &k, half));
+    sum.iter_mut().zip(&k).for_each(|(sum, k)| *sum = *sum + two * *k);
+    let k = f.at(&offset(x, &k, half));
+    sum.iter_mut().zip(&k).for_each(|(sum, k)| *sum = *sum + two * *k);
+    let k = f.at(&offset(x, &k, dt));
+    sum.iter_mut().zip(&k).for_each(|(sum, k)| *sum = *sum + *k);
+    offset(x, &sum, sixth)
+}
+
+/// One RK4 step of eq. (7)-(8) for N vehicles, then the limits the model does not
+/// enforce itself: a car does not reverse, and the steering stops at its lock.
+#[inline(always)]
+fn step_lanes<const N: usize>(x: &StateLanes<N>, inputs: &Inputs<N>, model: &Model<N>, dt: f64) -> StateLanes<N> {
+    let mut next = rk4(x, dt, Closed { inputs, model });
+    let zero = Lanes::splat(0.0);
+    next[0] = Lanes::select(next[0].lt(zero), zero, next[0]);
+    let locked = lanes::mask(|i| next[6].0[i].abs() > model.max_steer.0[i]);
+    next[6] = Lanes::select(locked, next[6].clamp(-model.max_steer, model.max_steer), next[6]);
+    next[7] = Lanes::select(locked, zero, next[7]);
+    next
 }
 
 /// Speeds (m/s) at which `rk4_growth` is checked for a physics step: from below the 1 m/s
@@ -424,10 +549,10 @@ pub fn step(
 }
 
 /// `step` with the constants of f prepared once, for a world that steps many vehicles
-/// of the same kind every tick.
-#[derive(Debug, Clone, Copy)]
+/// of the same kind every tick (`Fleet` steps them in blocks).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Stepper {
-    model: Model,
+    model: Model<1>,
     dt: f64,
 }
 
@@ -440,20 +565,9 @@ impl Stepper {
     /// One RK4 step of eq. (7)-(8).
     #[inline]
     pub fn step(&self, state: &VehicleState, command: Command, curvature: f64) -> VehicleState {
-        let x0 = state.to_array();
-        let start = Angles::of(x0[3], x0[6]);
-        let x = rk4(&x0, self.dt, |x| {
-            let angles = start.near(x[3], x0[3], x[6], x0[6]);
-            derivative_at(x, angles, command, curvature, &self.model)
-        });
-        let mut next = VehicleState::from_array(x);
-        next.vx = next.vx.max(0.0);
-        // The steering lock: the wheel stops there and its rate with it.
-        if next.steer.abs() > self.model.max_steer {
-            next.steer = next.steer.clamp(-self.model.max_steer, self.model.max_steer);
-            next.steer_rate = 0.0;
-        }
-        next
+        let inputs =
+            Inputs { accel: Lanes([command.accel]), preview: Lanes([command.preview]), curvature: Lanes([curvature]) };
+        VehicleState::from_array(array_of(&step_lanes(&lanes_of(&state.to_array()), &inputs, &self.model, self.dt)))
     }
 }
 
@@ -484,7 +598,8 @@ pub fn linearise(
     } = *vehicle;
     let mut a = SMatrix::<f64, STATES, STATES>::zeros();
     let mut b = SMatrix::<f64, STATES, INPUTS>::zeros();
-    let (front, ..) = lateral_forces(&x, &Model::new(vehicle, driver));
+    let (front, ..) = lateral_forces(&lanes_of(&x), &Model::new(vehicle, driver));
+    let front = front.0[0];
     let (sin_steer, cos_steer) = steer.sin_cos();
 
     // Tyre forces' partials over [vx, vy, r, steer].
@@ -717,19 +832,3 @@ pub fn lane_change_response(
 
 #[cfg(test)]
 mod tests;
-
-#[cfg(test)]
-mod trig_tests {
-    #[test]
-    fn rotated_angles_match_libm() {
-        for k in -100..=100 {
-            let base = k as f64 * 0.013;
-            for j in -10..=10 {
-                let delta = j as f64 * 1e-3;
-                let (sin, cos) = super::rotate(base.sin_cos(), delta);
-                let exact = (base + delta).sin_cos();
-                assert!((sin - exact.0).abs() < 1e-15 && (cos - exact.1).abs() < 1e-15, "{base} + {delta}");
-            }
-        }
-    }
-}

@@ -156,7 +156,9 @@ impl Scene {
         self.order.clear();
         self.order.extend((0..self.cars.len() as u32).filter(|&i| self.cars[i as usize].on_road()));
         let cars = &self.cars;
-        self.order.sort_by(|&a, &b| cars[a as usize].state.s.total_cmp(&cars[b as usize].state.s).then(a.cmp(&b)));
+        // Unstable (no scratch allocation) yet deterministic: ties are broken by index.
+        self.order
+            .sort_unstable_by(|&a, &b| cars[a as usize].state.s.total_cmp(&cars[b as usize].state.s).then(a.cmp(&b)));
         for lane in &mut self.lanes {
             lane.clear();
         }

@@ -164,10 +164,22 @@ pub struct World {
     rng: ChaCha8Rng,
     /// Vehicles by s, kept sorted every tick for the collision sweep.
     order: Vec<u32>,
+    /// Each vehicle's s by id, refreshed every tick: the sort and the sweep read these
+    /// 8 bytes per vehicle rather than a whole `Vehicle` each.
+    positions: Vec<f64>,
     /// Scratch of `decide`: one decision per vehicle.
     decisions: Vec<Decision>,
     /// Threads for the game-theoretic cars' decisions (`set_decision_threads`).
     decision_threads: usize,
+    /// Each vehicle's model constants over one physics step, by id; rebuilt after a
+    /// vehicle changes (`vehicle_mut`), as a stepper costs five divisions to prepare.
+    steppers: Vec<dynamics::Stepper>,
+    steppers_stale: bool,
+    /// Counts rebuilds of `steppers`, so the fleet's slots know their constants are old.
+    steppers_built: u64,
+    /// Scratch of `integrate`: the vehicles that move this step, and their ids.
+    fleet: dynamics::Fleet,
+    moving: Vec<u32>,
 }
 
 impl World {
@@ -184,8 +196,14 @@ impl World {
             collisions: Vec::new(),
             rng: ChaCha8Rng::seed_from_u64(seed),
             order: Vec::new(),
+            positions: Vec::new(),
             decisions: Vec::new(),
             decision_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            steppers: Vec::new(),
+            steppers_stale: true,
+            steppers_built: 0,
+            fleet: dynamics::Fleet::default(),
+            moving: Vec::new(),
         }
     }
 
@@ -195,6 +213,7 @@ impl World {
         self.vehicles.push(vehicle);
         self.sort_along_road();
         self.scene_tick = None;
+        self.steppers_stale = true;
         VehicleId(self.vehicles.len() as u32 - 1)
     }
 
@@ -240,6 +259,7 @@ impl World {
 
     pub(crate) fn vehicle_mut(&mut self, id: VehicleId) -> &mut Vehicle {
         self.scene_tick = None;
+        self.steppers_stale = true;
         &mut self.vehicles[id.0 as usize]
     }
 
@@ -330,11 +350,12 @@ impl World {
     /// Keeps `order` sorted by s: insertion sort, O(n) on the nearly sorted order of
     /// the last tick.
     fn sort_along_road(&mut self) {
-        let vehicles = &self.vehicles;
-        let order = &mut self.order;
+        self.positions.clear();
+        self.positions.extend(self.vehicles.iter().map(|vehicle| vehicle.state.s));
+        let (positions, order) = (&self.positions, &mut self.order);
         for i in 1..order.len() {
             let mut j = i;
-            while j > 0 && vehicles[order[j - 1] as usize].state.s > vehicles[order[j] as usize].state.s {
+            while j > 0 && positions[order[j - 1] as usize] > positions[order[j] as usize] {
                 order.swap(j - 1, j);
                 j -= 1;
             }
@@ -505,15 +526,18 @@ impl World {
         self.vehicles[id.0 as usize].command.accel = accel;
     }
 
-    /// Integrates every vehicle on the road over one physics step.
+    /// Integrates every vehicle on the road over one physics step, all of them together
+    /// (`dynamics::Fleet`).
     fn integrate(&mut self) {
-        let (dt, time) = (self.params.physics_dt, self.time);
+        self.prepare_steppers();
+        let time = self.time;
         let road = &self.scene.road;
-        for vehicle in &mut self.vehicles {
-            if !vehicle.on_road() {
-                continue;
-            }
-            if vehicle.status == Status::Crashed && vehicle.state.vx <= 0.0 {
+        let (fleet, moving) = (&mut self.fleet, &mut self.moving);
+        fleet.clear();
+        moving.clear();
+        for (index, vehicle) in self.vehicles.iter_mut().enumerate() {
+            let stopped_wreck = vehicle.status == Status::Crashed && vehicle.state.vx <= 0.0;
+            if !vehicle.on_road() || stopped_wreck {
                 continue;
             }
             vehicle.command.preview = match vehicle.driver {
@@ -521,9 +545,15 @@ impl World {
                 Driver::Gt(_) => vehicle.command.preview,
                 _ => vehicle.path.preview(time, vehicle.driver_params.preview_time),
             };
-            let curvature = road.curvature(vehicle.state.s);
-            let stepper = dynamics::Stepper::new(&self.scene.vehicle, &vehicle.driver_params, dt);
-            vehicle.state = stepper.step(&vehicle.state, vehicle.command, curvature);
+            let key = self.steppers_built << 32 | index as u64;
+            fleet.push(key, &self.steppers[index], &vehicle.state, vehicle.command, road.curvature(vehicle.state.s));
+            moving.push(index as u32);
+        }
+        fleet.step();
+        for (k, &index) in moving.iter().enumerate() {
+            let vehicle = &mut self.vehicles[index as usize];
+            vehicle.state = fleet.state(k);
+            self.positions[index as usize] = vehicle.state.s;
             if vehicle.state.s > road.length() {
                 vehicle.status = Status::Exited;
             } else if vehicle.status == Status::Driving && road.lane_at(vehicle.state.s, vehicle.state.d).is_none() {
@@ -532,27 +562,36 @@ impl World {
         }
     }
 
+    fn prepare_steppers(&mut self) {
+        if !self.steppers_stale {
+            return;
+        }
+        let (body, dt) = (&self.scene.vehicle, self.params.physics_dt);
+        self.steppers.clear();
+        self.steppers.extend(self.vehicles.iter().map(|v| dynamics::Stepper::new(body, &v.driver_params, dt)));
+        self.steppers_stale = false;
+        self.steppers_built += 1;
+    }
+
     /// Oriented-box overlap between vehicles close along the road (a sweep over the
     /// sorted order: only pairs nearer than one body diagonal in s are tested).
     fn detect_collisions(&mut self) {
         let body = self.scene.vehicle;
         let reach = body.length.hypot(body.width);
         let mut found = Vec::new();
+        let positions = &self.positions;
         for (k, &i) in self.order.iter().enumerate() {
-            let a = &self.vehicles[i as usize];
-            if !a.on_road() {
-                continue;
-            }
             for &j in &self.order[k + 1..] {
-                let b = &self.vehicles[j as usize];
-                if b.state.s - a.state.s > reach {
+                if positions[j as usize] - positions[i as usize] > reach {
                     break;
                 }
+                let (a, b) = (&self.vehicles[i as usize], &self.vehicles[j as usize]);
                 let both_crashed = a.status == Status::Crashed && b.status == Status::Crashed;
                 // A box reaches sideways at most half its width plus half its length times
                 // |sin(heading)| <= |heading|: most neighbours in the next lane fail this.
                 let lateral_reach = body.width + body.length * (a.state.heading.abs() + b.state.heading.abs()) / 2.0;
-                if b.on_road()
+                if a.on_road()
+                    && b.on_road()
                     && !both_crashed
                     && (b.state.d - a.state.d).abs() <= lateral_reach
                     && self.boxes_overlap(a, b)

@@ -23,7 +23,7 @@ fn fixed_steer_yaw_rate_settles_to_the_linear_bicycle_value() {
     for speed in [10.0, 20.0, 30.0] {
         let mut x = VehicleState { steer, ..VehicleState::cruising(0.0, 0.0, speed) }.to_array();
         for _ in 0..1000 {
-            x = rk4(&x, DT, |x| {
+            x = rk4(&x, DT, |x: &[f64; STATES]| {
                 let mut dx = fixed_steer_derivative(x, 0.0, 0.0, &vehicle);
                 dx[0] = 0.0; // hold v_x: the steady state is defined at constant speed
                 dx
@@ -132,7 +132,7 @@ fn discretisation_matches_rk4_over_one_step() {
     }
 
     // And at the linearisation point it tracks the nonlinear model over one step.
-    let nonlinear = rk4(&state.to_array(), dt, |x| derivative(x, command, 0.0, &vehicle, &driver));
+    let nonlinear = rk4(&state.to_array(), dt, |x: &[f64; STATES]| derivative(x, command, 0.0, &vehicle, &driver));
     for i in 0..STATES {
         assert!(
             (exact[i] - nonlinear[i]).abs() < 1e-5 * nonlinear[i].abs().max(1.0),

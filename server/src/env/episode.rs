@@ -129,18 +129,14 @@ fn closest_approach(world: &mut World, id: VehicleId) -> (f64, f64) {
     let car = scene.car(id);
     let length = scene.vehicle.length;
     let (s, speed) = (car.state.s, car.speed());
-    let mut pairs = Vec::with_capacity(3);
-    for lane in [car.lane, car.target_lane] {
-        if let Some(ahead) = scene.ahead(lane, s, &[id]) {
-            pairs.push((ahead.state.s - s - length, speed - ahead.speed()));
-        }
-    }
-    if car.target_lane != car.lane
-        && let Some(behind) = scene.behind(car.target_lane, s, &[id])
-    {
-        pairs.push((s - behind.state.s - length, behind.speed() - speed));
-    }
-    pairs.iter().fold((f64::INFINITY, f64::INFINITY), |(gap, ttc), &(g, closing)| {
+    // (gap, closing speed) to the car ahead in each lane, and behind in the target lane.
+    let ahead = [car.lane, car.target_lane]
+        .map(|lane| scene.ahead(lane, s, &[id]).map(|ahead| (ahead.state.s - s - length, speed - ahead.speed())));
+    let behind = (car.target_lane != car.lane)
+        .then(|| scene.behind(car.target_lane, s, &[id]))
+        .flatten()
+        .map(|behind| (s - behind.state.s - length, behind.speed() - speed));
+    ahead.into_iter().chain([behind]).flatten().fold((f64::INFINITY, f64::INFINITY), |(gap, ttc), (g, closing)| {
         // Beside a car (g <= 0) there is no time to close a gap along the road.
         let time = if g > 0.0 && closing > 0.0 { g / closing } else { f64::INFINITY };
         (gap.min(g), ttc.min(time))

@@ -84,6 +84,19 @@ pub struct Env {
     world: Option<World>,
     agents: Vec<AgentSlot>,
     cycles: u32,
+    /// Buffers of `step`, kept so a step allocates only what its reply carries.
+    scratch: StepScratch,
+}
+
+/// What `step` works in, per agent slot or per live agent.
+#[derive(Debug, Clone, Default)]
+struct StepScratch {
+    chosen: Vec<Option<Action>>,
+    applied: Vec<bool>,
+    live_before: Vec<usize>,
+    driving_before: Vec<bool>,
+    vehicles: Vec<VehicleId>,
+    costs: Vec<reward::StepCost>,
 }
 
 /// The largest RGB frame (bytes) a render reply carries: the message limit less room for
@@ -159,6 +172,7 @@ impl Env {
             world: None,
             agents,
             cycles: 0,
+            scratch: StepScratch::default(),
         })
     }
 
@@ -263,7 +277,9 @@ impl Env {
                 ),
             ));
         }
-        let mut chosen: Vec<Option<Action>> = vec![None; self.agents.len()];
+        let StepScratch { chosen, applied, live_before, driving_before, vehicles, costs } = &mut self.scratch;
+        chosen.clear();
+        chosen.resize(self.agents.len(), None);
         for (name, action) in actions {
             let Some(index) = self.agents.iter().position(|a| &a.name == name) else {
                 let known = self.agents.iter().map(|a| a.name.as_str()).collect::<Vec<_>>().join(", ");
@@ -282,18 +298,22 @@ impl Env {
                 return Err(error(ErrorCode::InvalidAction, format!("agent '{name}' has two actions in one step")));
             }
         }
-        let mut applied = vec![true; self.agents.len()];
-        for ((agent, action), applied) in self.agents.iter().zip(&chosen).zip(&mut applied) {
+        applied.clear();
+        applied.resize(self.agents.len(), true);
+        for ((agent, action), applied) in self.agents.iter().zip(chosen.iter()).zip(applied.iter_mut()) {
             if agent.live && self.policy.is_none() {
                 *applied = action::apply(world, agent.vehicle, action.as_ref(), agent.action);
             }
         }
-        let live_before: Vec<usize> = (0..self.agents.len()).filter(|&i| self.agents[i].live).collect();
-        let driving_before: Vec<bool> =
-            live_before.iter().map(|&i| world.vehicle(self.agents[i].vehicle).status == Status::Driving).collect();
-        let vehicles: Vec<VehicleId> = live_before.iter().map(|&i| self.agents[i].vehicle).collect();
+        live_before.clear();
+        live_before.extend((0..self.agents.len()).filter(|&i| self.agents[i].live));
+        driving_before.clear();
+        driving_before
+            .extend(live_before.iter().map(|&i| world.vehicle(self.agents[i].vehicle).status == Status::Driving));
+        vehicles.clear();
+        vehicles.extend(live_before.iter().map(|&i| self.agents[i].vehicle));
         let started = world.time();
-        let costs = reward::advance(world, &vehicles, self.episode.step_dt);
+        reward::advance(world, vehicles, self.episode.step_dt, costs);
         self.cycles += 1;
         let truncated = self.cycles >= self.max_cycles;
         let mut results = Vec::with_capacity(live_before.len());

@@ -22,7 +22,7 @@ pub const KINEMATICS_VEHICLES: usize = 5;
 pub const KINEMATICS_FEATURES: usize = 7;
 
 /// Longitudinal range (m) a vehicle is seen within and normalised by.
-const SIGHT: f64 = 100.0;
+pub(super) const SIGHT: f64 = 100.0;
 /// Speed normalisation (m/s): highway-env's MAX_SPEED.
 const MAX_SPEED: f64 = 40.0;
 
@@ -75,21 +75,36 @@ fn features(road: &Road, state: &VehicleState, origin: Option<&VehicleState>) ->
 /// sight, by distance along the road (ties by id), found through the scene's index.
 pub fn kinematics(scene: &Scene, id: VehicleId) -> Tensor {
     let me = scene.car(id);
-    let mut near: Vec<(f64, VehicleId)> = scene
-        .around(me.state.s, SIGHT)
-        .filter(|car| car.id != id)
-        .map(|car| ((car.state.s - me.state.s).abs(), car.id))
-        .collect();
-    near.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let mut data = Vec::with_capacity(KINEMATICS_VEHICLES * KINEMATICS_FEATURES);
     let mut own = features(&scene.road, &me.state, None);
     own[1] = 0.0;
     data.extend(own);
-    for &(_, other) in near.iter().take(KINEMATICS_VEHICLES - 1) {
+    for other in nearest::<{ KINEMATICS_VEHICLES - 1 }>(scene, id, me.state.s).into_iter().flatten() {
         data.extend(features(&scene.road, &scene.car(other).state, Some(&me.state)));
     }
     data.resize(KINEMATICS_VEHICLES * KINEMATICS_FEATURES, 0.0);
     Tensor { shape: vec![(KINEMATICS_VEHICLES * KINEMATICS_FEATURES) as u32], data: TensorData::F32(data) }
+}
+
+/// The K cars nearest to `s` along the road within sight, other than `id`, nearest first
+/// (ties by id): kept sorted in a K-slot array as the scene's index yields them, so
+/// observing allocates nothing for it.
+pub(super) fn nearest<const K: usize>(scene: &Scene, id: VehicleId, s: f64) -> [Option<VehicleId>; K] {
+    let mut slots: [Option<(f64, VehicleId)>; K] = [None; K];
+    let closer = |a: (f64, VehicleId), b: (f64, VehicleId)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).is_lt();
+    for car in scene.around(s, SIGHT).filter(|car| car.id != id) {
+        let mut candidate = ((car.state.s - s).abs(), car.id);
+        for slot in &mut slots {
+            match slot {
+                Some(held) if !closer(candidate, *held) => {}
+                _ => match slot.replace(candidate) {
+                    Some(displaced) => candidate = displaced,
+                    None => break,
+                },
+            }
+        }
+    }
+    slots.map(|slot| slot.map(|(_, id)| id))
 }
 
 /// What agent `id` observes; `scene` must be the world as it is now (`World::scene`).

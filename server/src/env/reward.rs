@@ -62,12 +62,15 @@ pub struct StepCost {
     pub speed: f64,
 }
 
-/// Advances the world by `step_dt` and returns each vehicle's mean cost over it,
-/// sampled once per control period.
-pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<StepCost> {
+/// Advances the world by `step_dt` and writes into `costs` each vehicle's mean cost over
+/// it, sampled once per control period (a buffer the caller keeps: steps allocate nothing
+/// for it).
+pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64, costs: &mut Vec<StepCost>) {
     let per_control = world.params().substeps_per_control();
     let ticks = (step_dt / world.params().physics_dt).round() as u64;
-    let mut sums = vec![StepCost::default(); vehicles.len()];
+    let sums = costs;
+    sums.clear();
+    sums.resize(vehicles.len(), StepCost::default());
     let mut samples = 0u32;
     for tick in 0..ticks {
         world.tick();
@@ -87,8 +90,8 @@ pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<S
         }
     }
     let n = f64::from(samples.max(1));
-    sums.iter()
-        .map(|sum| StepCost {
+    for sum in sums.iter_mut() {
+        *sum = StepCost {
             components: CostComponents {
                 safety: sum.components.safety / n,
                 comfort: sum.components.comfort / n,
@@ -97,20 +100,26 @@ pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64) -> Vec<S
             weighted: sum.weighted / n,
             speed: sum.speed / n,
             ..*sum
-        })
-        .collect()
+        };
+    }
 }
+
+/// More than the entries of any step's info (facts, costs, the episode's figures at its
+/// end, the expert's action, diagnostics).
+const INFO_ENTRIES: usize = 32;
 
 /// Facts about an agent's vehicle, and its step cost when there is one.
 pub fn info(world: &World, id: VehicleId, cost: Option<&StepCost>) -> Info {
     let vehicle = world.vehicle(id);
-    let mut values = vec![
+    // Room for every entry a step adds, so the list is allocated once.
+    let mut values = Vec::with_capacity(INFO_ENTRIES);
+    values.extend([
         ("speed".to_string(), InfoValue::F64(vehicle.state.vx)),
         ("lane".to_string(), InfoValue::I64(world.road().nearest_lane(vehicle.state.d).0 as i64)),
         ("s".to_string(), InfoValue::F64(vehicle.state.s)),
         ("crashed".to_string(), InfoValue::Bool(vehicle.status == Status::Crashed)),
         ("off_road".to_string(), InfoValue::Bool(vehicle.status == Status::OffRoad)),
-    ];
+    ]);
     if let Some(cost) = cost {
         values.push(("cost".to_string(), InfoValue::F64(cost.weighted)));
         values.push(("cost_safety".to_string(), InfoValue::F64(cost.components.safety)));

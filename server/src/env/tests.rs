@@ -469,3 +469,24 @@ fn diagnostics_on_request_count_each_game_theoretic_cars_plans_and_qp_iterations
     let step = plain.step(&[]).unwrap()[0].clone();
     assert!(!step.info.values.iter().any(|(k, _)| k.starts_with("gt.")), "only on request");
 }
+
+#[test]
+fn the_observed_neighbours_are_those_a_full_sort_puts_first() {
+    let mut env = env("highway", CreateOptions::default());
+    env.reset(Some(2), &[]).unwrap();
+    for _ in 0..3 {
+        env.step(&[]).unwrap();
+        let scene = env.world.as_mut().unwrap().scene();
+        for car in scene.cars().iter().filter(|car| car.on_road()) {
+            let mut all: Vec<(f64, VehicleId)> = scene
+                .around(car.state.s, observation::SIGHT)
+                .filter(|other| other.id != car.id)
+                .map(|other| ((other.state.s - car.state.s).abs(), other.id))
+                .collect();
+            all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let mut expected: Vec<Option<VehicleId>> = all.iter().take(4).map(|&(_, id)| Some(id)).collect();
+            expected.resize(4, None);
+            assert_eq!(observation::nearest::<4>(scene, car.id, car.state.s).to_vec(), expected, "{:?}", car.id);
+        }
+    }
+}

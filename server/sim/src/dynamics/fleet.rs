@@ -98,6 +98,45 @@ impl Fleet {
         let used = self.len.div_ceil(BLOCK);
         step_blocks::<N>(&mut self.blocks[..used], self.dt);
     }
+
+    /// `step` compiled for each instruction set the dispatch chooses from, whichever this
+    /// machine has: for the tests, as the dispatch picks only the widest.
+    #[cfg(all(test, target_arch = "x86_64"))]
+    fn step_with_each_instruction_set(&self) -> Vec<(&'static str, Fleet)> {
+        #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+        unsafe fn avx512(blocks: &mut [Block], dt: f64) {
+            step_blocks::<BLOCK>(blocks, dt)
+        }
+        #[target_feature(enable = "avx2,avx")]
+        unsafe fn avx2(blocks: &mut [Block], dt: f64) {
+            step_blocks::<BLOCK>(blocks, dt)
+        }
+        #[target_feature(enable = "sse4.1")]
+        unsafe fn sse41(blocks: &mut [Block], dt: f64) {
+            step_blocks::<BLOCK>(blocks, dt)
+        }
+        let used = self.len.div_ceil(BLOCK);
+        let mut stepped = Vec::new();
+        let mut run = |name, step: &dyn Fn(&mut [Block], f64)| {
+            let mut fleet = self.clone();
+            step(&mut fleet.blocks[..used], fleet.dt);
+            stepped.push((name, fleet));
+        };
+        // SAFETY (each): the function runs only where the CPU reports its features.
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("avx512dq")
+        {
+            run("avx512", &|blocks, dt| unsafe { avx512(blocks, dt) });
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            run("avx2", &|blocks, dt| unsafe { avx2(blocks, dt) });
+        }
+        if std::arch::is_x86_feature_detected!("sse4.1") {
+            run("sse4.1", &|blocks, dt| unsafe { sse41(blocks, dt) });
+        }
+        stepped
+    }
 }
 
 #[multiversion(targets("x86_64+avx512f+avx512vl+avx512dq", "x86_64+avx2+avx", "x86_64+sse4.1"))]
@@ -186,6 +225,10 @@ mod tests {
             let mut unvectorised = fleet.clone();
             step(&mut unvectorised);
             assert_eq!(bits(&unvectorised), expected, "blocks of {width} without target features");
+        }
+        #[cfg(target_arch = "x86_64")]
+        for (instructions, stepped) in fleet.step_with_each_instruction_set() {
+            assert_eq!(bits(&stepped), expected, "blocks of {BLOCK} compiled for {instructions}");
         }
     }
 

@@ -1,10 +1,11 @@
-//! An env step allocates only what its reply owns (the protocol's messages own their
-//! strings and arrays, which Zenoh then sends): the world, the rewards and the
-//! observations work in buffers kept between steps. Counted by a global allocator that
-//! counts, in a test binary of its own so no other test's allocations mix in.
+//! The lean step path: the world's ticks allocate nothing once running (every tick
+//! reuses the buffers of earlier ones: scene, neighbour index, RK4 fleet, collision
+//! sweep), and an env step allocates only what its reply owns (the protocol's messages
+//! own their strings and arrays, which Zenoh then sends). Counted by a global allocator
+//! that counts per thread, so tests running side by side do not mix.
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::cell::Cell;
 
 use arena_protocol::{Action, CreateOptions, ObservationKind};
 use arena_server::env::Env;
@@ -12,11 +13,17 @@ use arena_sim::scenario::builtin;
 
 struct Counting;
 
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+thread_local! {
+    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn count() {
+    ALLOCATIONS.with(|count| count.set(count.get() + 1));
+}
 
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         unsafe { System.alloc(layout) }
     }
 
@@ -25,7 +32,7 @@ unsafe impl GlobalAlloc for Counting {
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count();
         unsafe { System.realloc(ptr, layout, new_size) }
     }
 }
@@ -34,9 +41,19 @@ unsafe impl GlobalAlloc for Counting {
 static COUNTING: Counting = Counting;
 
 fn allocations_of<T>(work: impl FnOnce() -> T) -> (T, usize) {
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    let before = ALLOCATIONS.with(Cell::get);
     let value = work();
-    (value, ALLOCATIONS.load(Ordering::Relaxed) - before)
+    (value, ALLOCATIONS.with(Cell::get) - before)
+}
+
+#[test]
+fn highway_ticks_allocate_nothing_once_warm() {
+    let mut world = builtin("highway").expect("built in").expect("parses").build(3);
+    world.advance(5.0);
+    let start = world.time();
+    let ((), allocations) = allocations_of(|| world.advance(20.0));
+    assert!(world.time() > start + 19.0, "the world advanced");
+    assert_eq!(allocations, 0, "allocations in 20 simulated seconds of highway.toml");
 }
 
 #[test]

@@ -16,7 +16,9 @@ use std::time::{Duration, Instant};
 use arena_client::blocking::{Client, Env};
 use arena_client::{Action, CreateOptions, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
-use arena_protocol::{ClientId, EnvId, META_IDLE, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, encode};
+use arena_protocol::{
+    ClientId, EnvId, META_IDLE, OptionValue, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, encode,
+};
 use serde::Serialize;
 
 /// Arguments of `arena bench`.
@@ -100,7 +102,12 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         &format!("server {server}: timing {} step and raw round trips on merge.toml", args.round_trips),
     );
 
-    let mut env = client.create_env(&server, ScenarioSource::Named("merge".into()), CreateOptions::default())?;
+    // merge.toml's AC is a game-theoretic follower; its decisions would be timed too.
+    let idm_ac = CreateOptions {
+        overrides: vec![("vehicle.ac.driver".into(), OptionValue::Str(r#"{ kind = "idm", style = "normal" }"#.into()))],
+        ..CreateOptions::default()
+    };
+    let mut env = client.create_env(&server, ScenarioSource::Named("merge".into()), idm_ac)?;
     env.reset(Some(0), vec![])?;
     let actions = vec![("ec_0".to_string(), Action::Meta(META_IDLE))];
     let sample = env.step(actions.clone())?;

@@ -70,7 +70,8 @@ pub struct Vehicle {
     pub state: VehicleState,
     /// Driving style (Table I for steering; Table III for costs).
     pub style: Style,
-    /// Table I's parameters for `style`.
+    /// Table I's parameters for `style`; fixed once the vehicle is in a world, which
+    /// prepares its physics step from them then.
     pub driver_params: DriverParams,
     /// Who drives.
     pub driver: Driver,
@@ -171,12 +172,9 @@ pub struct World {
     decisions: Vec<Decision>,
     /// Threads for the game-theoretic cars' decisions (`set_decision_threads`).
     decision_threads: usize,
-    /// Each vehicle's model constants over one physics step, by id; rebuilt after a
-    /// vehicle changes (`vehicle_mut`), as a stepper costs five divisions to prepare.
+    /// Each vehicle's model constants over one physics step, by id, prepared when it is
+    /// added (five divisions each): its body and driver parameters never change after.
     steppers: Vec<dynamics::Stepper>,
-    steppers_stale: bool,
-    /// Counts rebuilds of `steppers`, so the fleet's slots know their constants are old.
-    steppers_built: u64,
     /// Scratch of `integrate`: the vehicles that move this step, and their ids.
     fleet: dynamics::Fleet,
     moving: Vec<u32>,
@@ -200,8 +198,6 @@ impl World {
             decisions: Vec::new(),
             decision_threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             steppers: Vec::new(),
-            steppers_stale: true,
-            steppers_built: 0,
             fleet: dynamics::Fleet::default(),
             moving: Vec::new(),
         }
@@ -209,11 +205,12 @@ impl World {
 
     /// Adds a vehicle and returns its id.
     pub fn add(&mut self, vehicle: Vehicle) -> VehicleId {
+        let (body, dt) = (&self.scene.vehicle, self.params.physics_dt);
+        self.steppers.push(dynamics::Stepper::new(body, &vehicle.driver_params, dt));
         self.order.push(self.vehicles.len() as u32);
         self.vehicles.push(vehicle);
         self.sort_along_road();
         self.scene_tick = None;
-        self.steppers_stale = true;
         VehicleId(self.vehicles.len() as u32 - 1)
     }
 
@@ -259,7 +256,6 @@ impl World {
 
     pub(crate) fn vehicle_mut(&mut self, id: VehicleId) -> &mut Vehicle {
         self.scene_tick = None;
-        self.steppers_stale = true;
         &mut self.vehicles[id.0 as usize]
     }
 
@@ -529,7 +525,6 @@ impl World {
     /// Integrates every vehicle on the road over one physics step, all of them together
     /// (`dynamics::Fleet`).
     fn integrate(&mut self) {
-        self.prepare_steppers();
         let time = self.time;
         let road = &self.scene.road;
         let (fleet, moving) = (&mut self.fleet, &mut self.moving);
@@ -545,8 +540,13 @@ impl World {
                 Driver::Gt(_) => vehicle.command.preview,
                 _ => vehicle.path.preview(time, vehicle.driver_params.preview_time),
             };
-            let key = self.steppers_built << 32 | index as u64;
-            fleet.push(key, &self.steppers[index], &vehicle.state, vehicle.command, road.curvature(vehicle.state.s));
+            fleet.push(
+                index as u64,
+                &self.steppers[index],
+                &vehicle.state,
+                vehicle.command,
+                road.curvature(vehicle.state.s),
+            );
             moving.push(index as u32);
         }
         fleet.step();
@@ -560,17 +560,6 @@ impl World {
                 vehicle.status = Status::OffRoad;
             }
         }
-    }
-
-    fn prepare_steppers(&mut self) {
-        if !self.steppers_stale {
-            return;
-        }
-        let (body, dt) = (&self.scene.vehicle, self.params.physics_dt);
-        self.steppers.clear();
-        self.steppers.extend(self.vehicles.iter().map(|v| dynamics::Stepper::new(body, &v.driver_params, dt)));
-        self.steppers_stale = false;
-        self.steppers_built += 1;
     }
 
     /// Oriented-box overlap between vehicles close along the road (a sweep over the

@@ -27,19 +27,20 @@ fn config() -> Config {
 /// refuses messages over `MAX_MESSAGE_BYTES`; a sender that may produce one (a large
 /// render) checks the length.
 ///
-/// The size is counted first and the bytes written into one allocation of exactly that
-/// size: growing the buffer as bincode writes took eight reallocations for a step reply.
-/// The buffer is then handed to Zenoh, which owns it until it is sent.
+/// The buffer starts with room for a single env's step reply, so one allocation holds it
+/// (growing from empty took eight); batches grow it a few times. Zenoh then owns it.
 pub fn encode<T: Serialize>(value: &T) -> Vec<u8> {
-    // Only reachable through a Serialize impl that errors (a map without a length); this
-    // crate has none.
-    let failed = |e: bincode::error::EncodeError| -> ! { panic!("encoding a protocol message failed: {e}") };
-    let mut size = bincode::enc::write::SizeWriter::default();
-    bincode::serde::encode_into_writer(value, &mut size, config()).unwrap_or_else(|e| failed(e));
-    let mut bytes = Vec::with_capacity(size.bytes_written);
-    bincode::serde::encode_into_std_write(value, &mut bytes, config()).unwrap_or_else(|e| failed(e));
+    let mut bytes = Vec::with_capacity(ENCODE_START_BYTES);
+    bincode::serde::encode_into_std_write(value, &mut bytes, config()).unwrap_or_else(|e| {
+        // Only reachable through a Serialize impl that errors (a map without a length);
+        // this crate has none.
+        panic!("encoding a protocol message failed: {e}")
+    });
     bytes
 }
+
+/// `encode`'s first buffer (bytes): more than a highway.toml step reply (about 1 KB).
+const ENCODE_START_BYTES: usize = 2048;
 
 /// Decodes a whole message, refusing oversized, truncated, trailing and garbage bytes.
 pub fn decode<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, DecodeError> {

@@ -390,9 +390,7 @@ pub fn derivative(
     vehicle: &VehicleParams,
     driver: &DriverParams,
 ) -> Vector8 {
-    let inputs =
-        Inputs { accel: Lanes([command.accel]), preview: Lanes([command.preview]), curvature: Lanes([curvature]) };
-    array_of(&derivative_at(&lanes_of(x), &inputs, &Model::new(vehicle, driver)))
+    array_of(&derivative_at(&lanes_of(x), &Inputs::one(command, curvature), &Model::new(vehicle, driver)))
 }
 
 /// What a vehicle's f reads besides its state and constants, for N vehicles.
@@ -401,6 +399,12 @@ struct Inputs<const N: usize> {
     accel: Lanes<N>,
     preview: Lanes<N>,
     curvature: Lanes<N>,
+}
+
+impl Inputs<1> {
+    fn one(command: Command, curvature: f64) -> Inputs<1> {
+        Inputs { accel: Lanes([command.accel]), preview: Lanes([command.preview]), curvature: Lanes([curvature]) }
+    }
 }
 
 #[inline(always)]
@@ -416,14 +420,12 @@ fn derivative_at<const N: usize>(x: &StateLanes<N>, inputs: &Inputs<N>, model: &
 
 /// The bicycle alone (eq. 2–6) with the steering angle held where it is.
 pub fn fixed_steer_derivative(x: &Vector8, accel: f64, curvature: f64, vehicle: &VehicleParams) -> Vector8 {
-    let x = lanes_of(x);
     let model = Model::new(vehicle, &DriverParams::default());
-    let heading = lanes::sin_cos(x[3]);
-    let (_, cos_steer) = lanes::sin_cos(x[6]);
-    let (front, rear, _) = lateral_forces(&x, &model);
-    let [vx_dot, vy_dot, r_dot] = body_derivative(&x, (front, rear), cos_steer, Lanes([accel]), &model);
-    let [heading_dot, s_dot, d_dot] = pose_derivative(&x, heading, Lanes([curvature]));
-    array_of(&[vx_dot, vy_dot, r_dot, heading_dot, s_dot, d_dot, Lanes([0.0]), Lanes([0.0])])
+    let inputs = Inputs::one(Command { accel, preview: 0.0 }, curvature);
+    let mut dx = array_of(&derivative_at(&lanes_of(x), &inputs, &model));
+    dx[6] = 0.0;
+    dx[7] = 0.0;
+    dx
 }
 
 /// A right-hand side x' = f(x) for `rk4`: any closure, or `Closed` (a trait, not a
@@ -567,8 +569,7 @@ impl Stepper {
     /// One RK4 step of eq. (7)-(8).
     #[inline]
     pub fn step(&self, state: &VehicleState, command: Command, curvature: f64) -> VehicleState {
-        let inputs =
-            Inputs { accel: Lanes([command.accel]), preview: Lanes([command.preview]), curvature: Lanes([curvature]) };
+        let inputs = Inputs::one(command, curvature);
         VehicleState::from_array(array_of(&step_lanes(&lanes_of(&state.to_array()), &inputs, &self.model, self.dt)))
     }
 }

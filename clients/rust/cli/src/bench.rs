@@ -121,12 +121,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
 
     let (mut steps, mut raws) = (Vec::with_capacity(args.round_trips), Vec::with_capacity(args.round_trips));
     for k in 0..args.round_trips {
-        let clock = Instant::now();
-        let reply = env.step(actions.clone())?;
-        steps.push(clock.elapsed());
-        if reply.agents.is_empty() {
-            env.reset(Some(k as u64), vec![])?;
-        }
+        steps.push(timed_step(&mut env, &actions, k)?);
         raws.push(client.block_on(client.inner().echo(&server, request_bytes, reply_bytes as u32))?);
         if !args.json && (k + 1) % 500 == 0 {
             eprintln!("  {}/{}", k + 1, args.round_trips);
@@ -189,6 +184,17 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
 /// Envs per batch of the concurrent load in `steps_under_batch_load`.
 const LOAD_BATCH: usize = 64;
 
+/// One timed step of `env`; an episode that ended is reset, untimed.
+fn timed_step(env: &mut Env, actions: &[(String, Action)], k: usize) -> anyhow::Result<Duration> {
+    let clock = Instant::now();
+    let reply = env.step(actions.to_vec())?;
+    let elapsed = clock.elapsed();
+    if reply.agents.is_empty() {
+        env.reset(Some(k as u64), vec![])?;
+    }
+    Ok(elapsed)
+}
+
 /// Single step round trips of `env` while a second client, on its own session, steps
 /// `LOAD_BATCH` highway.toml envs of the same server in a loop.
 fn steps_under_batch_load(
@@ -210,12 +216,7 @@ fn steps_under_batch_load(
     }
     let mut times = Vec::with_capacity(args.round_trips);
     for k in 0..args.round_trips {
-        let clock = Instant::now();
-        let reply = env.step(actions.to_vec())?;
-        times.push(clock.elapsed());
-        if reply.agents.is_empty() {
-            env.reset(Some(k as u64), vec![])?;
-        }
+        times.push(timed_step(env, actions, k)?);
     }
     stop.store(true, Ordering::Relaxed);
     load.join().map_err(|_| anyhow::anyhow!("the batch loop panicked"))??;

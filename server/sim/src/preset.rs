@@ -74,19 +74,25 @@ pub fn builtin_names() -> Vec<&'static str> {
 }
 
 /// Loads preset `name_or_file`: a built-in name, or a path to a `.toml` file (anything
-/// with a `/` or ending in `.toml`).
+/// with a `/` or ending in `.toml`), relative to the working directory. For the command
+/// line only: scenario files, which clients may send, name built-in presets (`builtin`).
 pub fn load(name_or_file: &str) -> Result<Preset, PresetError> {
-    let fail = |message: String| PresetError { preset: name_or_file.to_string(), message };
     if name_or_file.contains('/') || name_or_file.ends_with(".toml") {
+        let fail = |message: String| PresetError { preset: name_or_file.to_string(), message };
         let text = std::fs::read_to_string(name_or_file).map_err(|e| fail(format!("cannot read it: {e}")))?;
         return parse(name_or_file, &text);
     }
-    match BUILTIN_PRESETS.iter().find(|(name, _)| *name == name_or_file) {
-        Some((_, text)) => parse(name_or_file, text),
-        None => Err(fail(format!(
-            "no such built-in preset; choose one of {}, or give a path to a .toml preset file",
-            builtin_names().join(", ")
-        ))),
+    builtin(name_or_file, "or give a path to a .toml preset file")
+}
+
+/// Loads the built-in preset `name`; an unknown name's error lists them and adds `hint`.
+pub fn builtin(name: &str, hint: &str) -> Result<Preset, PresetError> {
+    match BUILTIN_PRESETS.iter().find(|(builtin, _)| *builtin == name) {
+        Some((_, text)) => parse(name, text),
+        None => Err(PresetError {
+            preset: name.to_string(),
+            message: format!("no such built-in preset; choose one of {}, {hint}", builtin_names().join(", ")),
+        }),
     }
 }
 
@@ -198,5 +204,18 @@ mod tests {
         assert!(missing.contains("presets/missing.toml") && missing.contains("cannot read"), "{missing}");
         let negative = parse("t", "name = \"t\"\n[gt.decision.game]\nfollower_tolerance = -1\n").unwrap_err();
         assert!(negative.to_string().contains("follower_tolerance"), "{negative}");
+    }
+
+    #[test]
+    fn a_preset_cannot_ask_for_unbounded_work() {
+        for (section, key, value, named) in [
+            ("game", "accel_step", "1e-300", "accel_step"),
+            ("prediction", "samples", "1000000000", "samples"),
+            ("prediction", "horizon", "1e9", "horizon"),
+        ] {
+            let text = format!("name = \"t\"\n[gt.decision.{section}]\n{key} = {value}\n");
+            let refused = parse("t", &text).unwrap_err().to_string();
+            assert!(refused.contains(named) && refused.contains("at most"), "{refused}");
+        }
     }
 }

@@ -824,7 +824,13 @@ impl VehicleFile {
             DriverFile::Idm { style } => (*style, DriverSpec::Idm),
             DriverFile::Gt { style, game, role, follower_tolerance, params } => {
                 let mut constants = match params {
-                    Some(name) => crate::preset::load(name).map_err(|e| invalid("driver.params", e.to_string()))?.gt,
+                    // Built-in names only: a scenario may come from a client, and must not
+                    // make the server read its files.
+                    Some(name) => {
+                        let hint =
+                            "(a scenario names built-in presets only; a preset file is for `arena paper --params`)";
+                        crate::preset::builtin(name, hint).map_err(|e| invalid("driver.params", e.to_string()))?.gt
+                    }
                     None => GtParams::default(),
                 };
                 if let Some(tolerance) = *follower_tolerance {

@@ -236,6 +236,17 @@ fn a_bad_gt_driver_is_refused_with_the_reason() {
 }
 
 #[test]
+fn a_scenario_names_built_in_presets_only_never_a_file() {
+    for path in ["/etc/hostname", "presets/paper-fit.toml", "paper-fit.toml"] {
+        let message = error(&with(
+            "driver = { kind = \"agent\" }",
+            &format!("driver = {{ kind = \"gt\", game = \"nash\", params = \"{path}\" }}"),
+        ));
+        assert!(message.contains("driver.params") && message.contains("built-in presets only"), "{message}");
+    }
+}
+
+#[test]
 fn a_gt_driver_takes_its_constants_from_a_preset_and_its_own_tolerance() {
     let text = with(
         "driver = { kind = \"agent\" }",

@@ -51,6 +51,13 @@ pub struct GtParams {
     pub interaction: InteractionParams,
 }
 
+/// The most prediction samples a preset may ask for (the defaults take 6; calibration 3-10).
+const MAX_SAMPLES: usize = 100;
+/// The longest prediction horizon a preset may ask for (s; the defaults 3, calibration 1.5-5).
+const MAX_HORIZON: f64 = 30.0;
+/// The most acceleration steps of a game's grid (the defaults: 7 m/s^2 in 0.25 steps, 28).
+const MAX_ACCEL_GRID: f64 = 200.0;
+
 impl GtParams {
     /// Checks the constants a preset or a fit may set: `Err` names the first one out of
     /// its range (dotted path below `GtParams`) and says why.
@@ -89,6 +96,21 @@ impl GtParams {
         }
         if p.samples == 0 {
             return Err("decision.prediction.samples must be at least 1".to_string());
+        }
+        // Upper bounds: a preset may come with a scenario file, and every decision's work
+        // grows with these (a grid of 1e300 accelerations would never end).
+        if p.samples > MAX_SAMPLES {
+            return Err(format!("decision.prediction.samples must be at most {MAX_SAMPLES}, not {}", p.samples));
+        }
+        if p.horizon > MAX_HORIZON {
+            return Err(format!("decision.prediction.horizon must be at most {MAX_HORIZON} s, not {}", p.horizon));
+        }
+        let grid = (g.accel_max - g.accel_min) / g.accel_step;
+        if grid > MAX_ACCEL_GRID {
+            return Err(format!(
+                "decision.game's acceleration grid (accel_max - accel_min) / accel_step has {grid:.0} steps; \
+                 at most {MAX_ACCEL_GRID}: raise accel_step"
+            ));
         }
         Ok(())
     }

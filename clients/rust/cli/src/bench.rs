@@ -96,6 +96,9 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     if args.round_trips == 0 || !(args.batch_seconds.is_finite() && args.batch_seconds > 0.0) {
         anyhow::bail!("--round-trips must be at least 1 and --batch-seconds positive");
     }
+    if args.batches.contains(&0) {
+        anyhow::bail!("--batches: every batch size must be at least 1, e.g. --batches 1,16,64");
+    }
     let (client, server) = crate::connect(&args.connection)?;
     progress(
         args.json,

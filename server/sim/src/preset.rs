@@ -82,16 +82,16 @@ pub fn load(name_or_file: &str) -> Result<Preset, PresetError> {
         let text = std::fs::read_to_string(name_or_file).map_err(|e| fail(format!("cannot read it: {e}")))?;
         return parse(name_or_file, &text);
     }
-    builtin(name_or_file, "or give a path to a .toml preset file")
+    builtin(name_or_file, ", or give a path to a .toml preset file")
 }
 
-/// Loads the built-in preset `name`; an unknown name's error lists them and adds `hint`.
+/// Loads the built-in preset `name`; an unknown name's error lists them, then `hint`.
 pub fn builtin(name: &str, hint: &str) -> Result<Preset, PresetError> {
     match BUILTIN_PRESETS.iter().find(|(builtin, _)| *builtin == name) {
         Some((_, text)) => parse(name, text),
         None => Err(PresetError {
             preset: name.to_string(),
-            message: format!("no such built-in preset; choose one of {}, {hint}", builtin_names().join(", ")),
+            message: format!("no such built-in preset; choose one of {}{hint}", builtin_names().join(", ")),
         }),
     }
 }

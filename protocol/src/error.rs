@@ -16,7 +16,8 @@ pub enum ErrorCode {
     MalformedRequest = 0,
     /// 1: the request speaks another protocol version.
     WrongVersion = 1,
-    /// 2: the request exceeds `MAX_MESSAGE_BYTES`.
+    /// 2: the request exceeds `MAX_MESSAGE_BYTES`, or one of its strings or lists its
+    /// bound (`bounds`).
     PayloadTooLarge = 2,
     /// 3: no env with that id belongs to this client on this server.
     UnknownEnv = 3,

@@ -4,6 +4,9 @@
 //! - `<prefix>/clients/<client_tag>`: liveliness token of each client, under its public
 //!   tag (a server closes the envs of a client whose token disappears);
 //! - `<prefix>/<server_id>/rpc`: the queryable that answers every `Request`;
+//! - `<prefix>/<server_id>/rpc/<user>`: the same, asked by a client logged in as `user`
+//!   (a site's access control lets user U ask only on keys ending in `/U`, so the key
+//!   names the user the server counts the env against);
 //! - `<prefix>/<server_id>/echo`: replies with as many bytes as asked (benchmarks).
 //!
 //! A prefix is one or more non-empty chunks separated by '/' (`arena`, `site/a`); an id
@@ -77,6 +80,24 @@ pub fn server_rpc(prefix: &str, server_id: &str) -> Result<String, KeyError> {
     join(prefix, &[server_id, "rpc"])
 }
 
+/// `<prefix>/<server_id>/rpc/<user>`: the request key of a client logged in as `user`.
+pub fn user_rpc(prefix: &str, server_id: &str, user: &str) -> Result<String, KeyError> {
+    join(prefix, &[server_id, "rpc", user])
+}
+
+/// `<prefix>/<server_id>/rpc/**`: what the server's queryable is declared on, so it
+/// answers `server_rpc` and every `user_rpc`.
+pub fn server_rpc_queryable(prefix: &str, server_id: &str) -> Result<String, KeyError> {
+    Ok(server_rpc(prefix, server_id)? + "/**")
+}
+
+/// The user a request key names (`user_rpc`), `None` for `server_rpc` itself or any
+/// other key.
+pub fn rpc_user(prefix: &str, server_id: &str, key: &str) -> Option<String> {
+    let rest = key.strip_prefix(prefix)?.strip_prefix('/')?.strip_prefix(server_id)?.strip_prefix("/rpc/")?;
+    check_id(rest).ok().map(|()| rest.to_string())
+}
+
 /// `<prefix>/<server_id>/echo`: raw replies of a requested size, for benchmarks.
 pub fn server_echo(prefix: &str, server_id: &str) -> Result<String, KeyError> {
     join(prefix, &[server_id, "echo"])
@@ -109,6 +130,17 @@ mod tests {
         assert_eq!(clients_liveliness_wildcard("site/a").unwrap(), "site/a/clients/*");
         assert_eq!(server_rpc("site/a", "ab12").unwrap(), "site/a/ab12/rpc");
         assert_eq!(server_echo("arena", "ab12").unwrap(), "arena/ab12/echo");
+        assert_eq!(user_rpc("site/a", "ab12", "alice").unwrap(), "site/a/ab12/rpc/alice");
+        assert_eq!(server_rpc_queryable("arena", "ab12").unwrap(), "arena/ab12/rpc/**");
+        assert!(user_rpc("arena", "ab12", "a/b").is_err() && user_rpc("arena", "ab12", "*").is_err());
+    }
+
+    #[test]
+    fn the_user_of_a_request_key_is_its_last_chunk_after_rpc() {
+        assert_eq!(rpc_user("arena", "ab12", "arena/ab12/rpc/alice").as_deref(), Some("alice"));
+        for key in ["arena/ab12/rpc", "arena/ab12/rpc/", "arena/ab12/rpc/a/b", "arena/cd34/rpc/alice", "x/ab12/rpc/a"] {
+            assert_eq!(rpc_user("arena", "ab12", key), None, "{key}");
+        }
     }
 
     #[test]

@@ -11,6 +11,7 @@
 //!   2, standard config, with a [`MAX_MESSAGE_BYTES`] limit), so the codec is one file to
 //!   change; [`DecodeError`] says whether bytes were too large, trailing or malformed.
 //! - [`keys`]: key-expression builders and parsers; nothing else formats keys.
+//! - [`bounds`]: the size of every string and list a request may carry.
 //! - [`Space`]: Box, Discrete and Dict specs, with checks for observations and actions.
 //! - [`ErrorReply`]: a stable [`ErrorCode`], a message for people, and whether the env
 //!   survives.
@@ -31,6 +32,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod bounds;
 mod codec;
 mod error;
 pub mod keys;
@@ -45,5 +47,6 @@ pub use messages::*;
 pub use spaces::{DType, Space};
 
 /// The protocol version every message carries first; bumped on any incompatible change
-/// (3: client liveliness tokens carry `ClientId::tag`, and the server id is its Zenoh id).
-pub const PROTOCOL_VERSION: u16 = 3;
+/// (3: client liveliness tokens carry `ClientId::tag`, and the server id is its Zenoh id;
+/// 4: `ServerInfo::yours`, and requests of a named user travel on `keys::user_rpc`).
+pub const PROTOCOL_VERSION: u16 = 4;

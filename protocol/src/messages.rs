@@ -407,8 +407,11 @@ pub struct ServerInfo {
     pub envs: u32,
     /// Most envs it holds.
     pub max_envs: u32,
-    /// Most envs one client may hold.
+    /// Most envs one party (an authenticated user, else a client id) may hold.
     pub max_envs_per_client: u32,
+    /// Envs the asking party holds on this server now (so placement skips a server where
+    /// it is at `max_envs_per_client`).
+    pub yours: u32,
     /// Env steps it has taken since it started (batched ones included): its load, with
     /// `cores`, for clients that place envs.
     pub steps: u64,
@@ -694,6 +697,7 @@ mod tests {
                 envs: 2,
                 max_envs: 9,
                 max_envs_per_client: 3,
+                yours: 1,
                 steps: 1 << 40,
                 cores: 2,
                 rss_bytes: 12 << 20,

@@ -115,26 +115,44 @@ fn file_connects(config: &zenoh::Config) -> bool {
 }
 
 /// Access control for a server that is its clients' only meeting point (a peer, the
-/// default): no other session may declare a queryable under the prefix or a server's
-/// liveliness token, so nobody who connects can receive other clients' requests or pose
-/// as a server. (A router of a site gets its rules from deploy/auth/router.json5.)
+/// default): every other session may do only what a client does — ask on the servers'
+/// `rpc` and `echo` keys, announce itself under `clients/`, look for servers — and
+/// nothing else; everything this server sends is allowed. Zenoh applies a rule to a
+/// declaration whose key expression the rule's *includes*, so a deny list on the prefix
+/// would let `**` or `*/*/rpc` through; an allow list with everything else denied stops
+/// every expression that is not one of these. (A router of a site gets its rules from
+/// deploy/auth/router.json5.)
 pub fn guard_server_keys(config: &mut zenoh::Config, prefix: &str) -> Result<(), String> {
     crate::keys::check_prefix(prefix).map_err(|e| e.to_string())?;
     let rules = format!(
         r#"{{
             enabled: true,
-            default_permission: "allow",
+            default_permission: "deny",
             rules: [
-                {{ id: "no-other-queryables", permission: "deny", flows: ["ingress"],
-                   messages: ["declare_queryable"], key_exprs: ["{prefix}/**"] }},
-                {{ id: "no-other-servers", permission: "deny", flows: ["ingress"],
-                   messages: ["liveliness_token"], key_exprs: ["{prefix}/servers/**"] }},
+                {{ id: "clients-ask", permission: "allow", flows: ["ingress"], messages: ["query"],
+                   key_exprs: ["{prefix}/*/rpc", "{prefix}/*/rpc/*", "{prefix}/*/echo"] }},
+                {{ id: "clients-announce", permission: "allow", flows: ["ingress"], messages: ["liveliness_token"],
+                   key_exprs: ["{prefix}/clients/*"] }},
+                {{ id: "clients-find-servers", permission: "allow", flows: ["ingress"],
+                   messages: ["liveliness_query", "declare_liveliness_subscriber"], key_exprs: ["{prefix}/servers/*"] }},
+                {{ id: "server-speaks", permission: "allow", flows: ["egress"],
+                   messages: ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
+                              "liveliness_token", "liveliness_query", "declare_liveliness_subscriber"],
+                   key_exprs: ["**"] }},
             ],
             subjects: [{{ id: "every-session" }}],
-            policies: [{{ rules: ["no-other-queryables", "no-other-servers"], subjects: ["every-session"] }}],
+            policies: [{{ rules: ["clients-ask", "clients-announce", "clients-find-servers", "server-speaks"],
+                          subjects: ["every-session"] }}],
         }}"#
     );
     config.insert_json5("access_control", &rules).map_err(|e| format!("invalid access control: {e}"))
+}
+
+/// The user a Zenoh config logs in as (`transport/auth/usrpwd/user`), if any.
+pub fn login_user(config: &zenoh::Config) -> Option<String> {
+    let json = config.get_json("transport/auth/usrpwd/user").ok()?;
+    let user = json.trim().strip_prefix('"')?.strip_suffix('"')?;
+    (!user.is_empty()).then(|| user.to_string())
 }
 
 impl ConnectionFlags {

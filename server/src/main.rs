@@ -19,8 +19,11 @@ struct Args {
     /// Most envs alive at once; further creates are refused with TooManyEnvs.
     #[arg(long, default_value_t = 1024)]
     max_envs: usize,
-    /// Most envs one client may hold at once (a shared server stays shared); further
-    /// creates by that client are refused with TooManyEnvs.
+    /// Most envs one party may hold at once; further creates are refused with TooManyEnvs.
+    /// Under a site's access control (deploy/auth/) a party is a logged-in user, however
+    /// many client ids it uses. On an open server it is a client id, and ids cost nothing:
+    /// there one session can still fill the server while it runs (envs of clients that
+    /// show no liveliness token are closed within seconds, the rest when they leave).
     #[arg(long, default_value_t = 256)]
     max_envs_per_client: usize,
     /// Seconds an env may stay untouched before it is closed.

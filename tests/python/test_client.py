@@ -99,6 +99,19 @@ def test_bad_override_is_refused_with_the_vehicle_named():
         highway_arena.parallel_env("merge", vehicle__ec_0__lane=9)
 
 
+def test_an_override_key_that_once_crashed_the_server_is_refused_and_the_server_serves_on():
+    # 15 000 parts, about 30 KB: on 07e7a7d this overflowed the server's stack.
+    key = "a." * 15000 + "a"
+    with pytest.raises(highway_arena.RequestTooLargeError, match="override key 'a.a.a"):
+        highway_arena.parallel_env("merge", overrides={key: 1})
+    env = highway_arena.parallel_env("merge")
+    env.reset(seed=0)
+    with pytest.raises(highway_arena.RequestTooLargeError, match="reset option key"):
+        env.reset(seed=0, options={"overrides": {key: 1}})
+    env.step({"ec_0": 1})
+    env.close()
+
+
 def test_inline_scenario_text_is_validated_like_a_file():
     with pytest.raises(highway_arena.ScenarioError, match="mine.toml"):
         highway_arena.parallel_env("mine.toml", scenario_text='name = "x"\n[road]\nlanes = 0\n')

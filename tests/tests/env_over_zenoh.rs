@@ -525,3 +525,82 @@ async fn more_kinds_of_bad_input_each_get_their_code_and_the_env_keeps_working()
     assert_eq!(ahead.seq, 10_000);
     assert!(matches!(raw(&harness, &render).await.body, ReplyBody::Render(_)), "the env still renders");
 }
+
+fn override_of(key: String) -> CreateOptions {
+    CreateOptions { overrides: vec![(key, OptionValue::Int(1))], ..Default::default() }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn keys_that_overflowed_the_stack_get_an_error_and_the_server_keeps_serving() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let mut env = harness.env(&client, "merge").await;
+    env.reset(Some(0), vec![]).await.unwrap();
+    let server = harness.server.id().to_string();
+    let merge = || ScenarioSource::Named("merge".into());
+    // 15 000 parts (about 30 KB) aborted the server on 07e7a7d; 1 MB is the fuzz runs' reach.
+    for key in ["a.".repeat(15_000) + "a", "a.".repeat(500_000)] {
+        let created = client.create_env(&server, merge(), override_of(key.clone())).await;
+        match created {
+            Err(ClientError::Server(e)) => {
+                assert_eq!(e.code, ErrorCode::PayloadTooLarge, "{e}");
+                assert!(e.message.contains("override key") && e.message.len() < 400, "{}", e.message);
+            }
+            other => panic!("a {}-byte key: {other:?}", key.len()),
+        }
+        let reset = env.reset(Some(0), vec![(format!("overrides.{key}"), OptionValue::Int(1))]).await;
+        assert_eq!(code(reset), ErrorCode::PayloadTooLarge);
+        assert!(env.step(vec![]).await.is_ok(), "the env still steps");
+    }
+    // Below the wire's bounds, the scenario's own depth bound answers (10 parts, 17 deep
+    // once the inline TOML nests): a coded error too.
+    let deep = ScenarioSource::Inline {
+        file_name: "deep.toml".into(),
+        text: format!("x = {}1{}\n", "[".repeat(40), "]".repeat(40)),
+    };
+    assert_eq!(code(client.create_env(&server, deep, CreateOptions::default()).await), ErrorCode::InvalidScenario);
+    let too_many_parts = ["a"; arena_protocol::bounds::MAX_OPTION_KEY_PARTS + 1].join(".");
+    assert_eq!(
+        code(client.create_env(&server, merge(), override_of(too_many_parts)).await),
+        ErrorCode::PayloadTooLarge
+    );
+    let at_the_bound = ["a"; arena_protocol::bounds::MAX_OPTION_KEY_PARTS].join(".");
+    assert_eq!(code(client.create_env(&server, merge(), override_of(at_the_bound)).await), ErrorCode::InvalidScenario);
+    assert!(client.server_info(&server).await.is_ok(), "still serving");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_panic_in_a_single_request_closes_that_env_and_is_answered_at_once() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let registry = harness.server.registry();
+    let mut other = harness.env(&client, "merge").await;
+    other.reset(Some(0), vec![]).await.unwrap();
+    for kind in ["reset", "step"] {
+        let mut env = harness.env(&client, "merge").await;
+        if kind == "step" {
+            env.reset(Some(0), vec![]).await.unwrap();
+        }
+        registry.inject_panic(kind);
+        let outcome = if kind == "reset" {
+            env.reset(Some(0), vec![]).await.map(|_| ())
+        } else {
+            env.step(vec![]).await.map(|_| ())
+        };
+        match outcome {
+            Err(ClientError::Server(e)) => {
+                assert_eq!(e.code, ErrorCode::Internal, "{kind}: {e}");
+                assert!(!e.env_usable && e.message.contains("panicked") && e.message.contains("closed"), "{e}");
+            }
+            other => panic!("{kind}: {other:?}"),
+        }
+        // A coded reply, so answered: a request left unanswered ends as `Timeout`.
+        assert_eq!(code(env.step(vec![]).await), ErrorCode::EnvClosed, "{kind}: the env is closed");
+        assert!(other.step(vec![]).await.is_ok(), "{kind}: another env steps on");
+    }
+    registry.inject_panic("create");
+    let created = client.create_env(harness.server.id(), ScenarioSource::Named("merge".into()), Default::default());
+    assert_eq!(code(created.await), ErrorCode::Internal);
+    assert_eq!(registry.len(), 1, "the panicking create left nothing behind");
+    harness.env(&client, "merge").await;
+}

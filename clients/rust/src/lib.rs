@@ -36,7 +36,7 @@ pub use arena_protocol::{
 };
 use arena_protocol::{
     ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys,
-    session::{ConnectionFlags, Role},
+    session::{ConnectionFlags, Role, login_user},
 };
 use zenoh::query::{ConsolidationMode, QueryTarget};
 
@@ -114,6 +114,8 @@ const GONE_GRACE: Duration = Duration::from_millis(50);
 struct Inner {
     session: zenoh::Session,
     prefix: String,
+    /// The user the session logged in as, named in every request's key (`keys::user_rpc`).
+    user: Option<String>,
     id: ClientId,
     timeout: Duration,
     retries: u32,
@@ -138,15 +140,19 @@ impl Client {
     /// tcp/127.0.0.1:7447 with multicast scouting off) and announces this client.
     pub async fn connect(flags: &ConnectionFlags) -> Result<Client> {
         let config = flags.zenoh_config(Role::Client).map_err(ClientError::Zenoh)?;
+        let user = login_user(&config);
         let session = zenoh::open(config).await.map_err(zenoh_error)?;
-        Client::with_session(session, &flags.prefix, flags.timeout(), flags.retries).await
+        Client::with_session(session, &flags.prefix, user, flags.timeout(), flags.retries).await
     }
 
-    /// Uses an open session. `timeout` bounds each attempt; a sequenced call is retried
-    /// `retries` times with the same sequence number, so it never steps twice.
+    /// Uses an open session, logged in as `user` if its config names one (a site's
+    /// access control lets a user ask only on keys that name it). `timeout` bounds each
+    /// attempt; a sequenced call is retried `retries` times with the same sequence
+    /// number, so it never steps twice.
     pub async fn with_session(
         session: zenoh::Session,
         prefix: &str,
+        user: Option<String>,
         timeout: Duration,
         retries: u32,
     ) -> Result<Client> {
@@ -155,7 +161,7 @@ impl Client {
         let token_key = keys::client_liveliness(prefix, &id.tag().to_string()).map_err(zenoh_error)?;
         let token = session.liveliness().declare_token(token_key).await.map_err(zenoh_error)?;
         let token = std::sync::Mutex::new(Some(token));
-        let inner = Inner { session, prefix: prefix.to_string(), id, timeout, retries, token };
+        let inner = Inner { session, prefix: prefix.to_string(), user, id, timeout, retries, token };
         Ok(Client { inner: Arc::new(inner) })
     }
 
@@ -337,7 +343,8 @@ impl Client {
                 code: ErrorCode::TooManyEnvs,
                 message: format!(
                     "the {} server(s) found have room for {} more env(s), not {count} (each holds at most its \
-                     --max-envs): close envs you no longer need, or start another server",
+                     --max-envs, and at most its --max-envs-per-client of yours): close envs you no longer need, \
+                     or start another server",
                     infos.len(),
                     placed.len()
                 ),
@@ -353,7 +360,11 @@ impl Client {
         let what = request_name(&body);
         let request = Request { version: PROTOCOL_VERSION, client: self.inner.id, body };
         let bytes = encode(&request);
-        let key = keys::server_rpc(&self.inner.prefix, server).map_err(zenoh_error)?;
+        let key = match &self.inner.user {
+            Some(user) => keys::user_rpc(&self.inner.prefix, server, user),
+            None => keys::server_rpc(&self.inner.prefix, server),
+        }
+        .map_err(zenoh_error)?;
         let attempts = if retry { self.inner.retries + 1 } else { 1 };
         let started = Instant::now();
         let mut unanswered = true;

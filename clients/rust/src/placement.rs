@@ -1,6 +1,7 @@
 //! Where new envs go when several servers serve one prefix: spread by load as the servers
 //! report it (`ServerInfo`: envs held, cores), so a client given one router address fills
-//! every server. An env stays on the server it was created on for its life.
+//! every server. An env stays on the server it was created on for its life. A server has
+//! room for the envs below both its `max_envs` and this party's `max_envs_per_client`.
 
 use std::cmp::Ordering;
 
@@ -17,7 +18,8 @@ struct Load<'a> {
 }
 
 /// Servers for `count` new envs, in order: each on the server with the fewest envs per
-/// core, counting those placed before it and skipping servers at their `max_envs`; ties
+/// core, counting those placed before it and skipping servers at their `max_envs` or
+/// where this party holds `max_envs_per_client`; ties
 /// go to the fewest envs, then to an order of this client's own (a hash of its tag and
 /// the server id), so clients placing at the same moment do not all pick one server.
 /// Shorter than `count` when the servers are full; empty when there are none.
@@ -27,7 +29,7 @@ pub fn spread(servers: &[ServerInfo], count: usize, client: ClientTag) -> Vec<St
         .map(|s| Load {
             envs: u128::from(s.envs),
             cores: u128::from(s.cores.max(1)),
-            room: u128::from(s.max_envs.saturating_sub(s.envs)),
+            room: u128::from(s.max_envs.saturating_sub(s.envs).min(s.max_envs_per_client.saturating_sub(s.yours))),
             turn: turn(client, &s.server_id),
             id: s.server_id.as_str(),
         })
@@ -68,11 +70,12 @@ mod tests {
         ServerInfo {
             server_id: id.into(),
             version: "0".into(),
-            protocol: 3,
+            protocol: arena_protocol::PROTOCOL_VERSION,
             scenarios: vec![],
             envs,
             max_envs: 1024,
             max_envs_per_client: 256,
+            yours: 0,
             steps: 0,
             cores,
             rss_bytes: 0,
@@ -127,6 +130,16 @@ mod tests {
         huge.max_envs = u32::MAX;
         // "small" is past its max_envs; "huge" has room for one more, then the list ends.
         assert_eq!(spread(&[huge, server("small", u32::MAX - 1, 1)], 2, ME), ["huge"]);
+    }
+
+    #[test]
+    fn a_server_where_this_party_holds_its_share_is_skipped() {
+        let mut mine = server("mine", 10, 8);
+        (mine.max_envs_per_client, mine.yours) = (12, 10);
+        // Two more fit this party's share on "mine", whatever room the server has.
+        let placed = spread(&[mine, server("other", 40, 2)], 5, ME);
+        assert_eq!(count(&placed, "mine"), 2, "{placed:?}");
+        assert_eq!(count(&placed, "other"), 3, "{placed:?}");
     }
 
     #[test]

@@ -63,6 +63,11 @@ pub enum ScenarioErrorKind {
         /// What is wrong with it.
         message: String,
     },
+    /// Occurs when tables and arrays nest deeper than `MAX_DEPTH` (text or overrides).
+    TooDeep {
+        /// How deep they nest, as far as counted (`MAX_DEPTH` + 1 at most).
+        depth: usize,
+    },
     /// Occurs when an override names a key that cannot be set.
     BadOverride {
         /// The override's dotted key.
@@ -92,11 +97,19 @@ impl fmt::Display for ScenarioError {
             }
             ScenarioErrorKind::Invalid { key, message } => write!(f, "`{key}` {message}"),
             ScenarioErrorKind::BadOverride { key, message } => write!(f, "override `{key}`: {message}"),
+            ScenarioErrorKind::TooDeep { depth } => {
+                write!(f, "tables and arrays nest {depth} deep; a scenario nests at most {MAX_DEPTH}")
+            }
         }
     }
 }
 
 impl std::error::Error for ScenarioError {}
+
+/// How deep a scenario's tables and arrays may nest, its text and overrides together (the
+/// shipped files nest 3 deep). Parsing, validating and dropping a TOML value recurse on
+/// its depth, and a scenario can come from a client.
+pub const MAX_DEPTH: usize = 16;
 
 /// The scenario files shipped in `scenarios/`, compiled in so the server needs no
 /// files beside it: (name, file name, text).
@@ -457,6 +470,10 @@ impl Scenario {
         for (key, value) in overrides {
             apply_override(&mut table, key, value.clone()).map_err(&fail)?;
         }
+        let depth = nesting(&table);
+        if depth > MAX_DEPTH {
+            return Err(fail(ScenarioErrorKind::TooDeep { depth }));
+        }
         let raw: ScenarioFile = if overrides.is_empty() {
             toml::from_str(text)
         } else {
@@ -571,6 +588,9 @@ fn place_traffic(world: &mut World, traffic: &TrafficSpec) {
 fn apply_override(table: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), ScenarioErrorKind> {
     let bad = |message: String| ScenarioErrorKind::BadOverride { key: key.to_string(), message };
     let parts: Vec<&str> = key.split('.').collect();
+    if parts.len() > MAX_DEPTH {
+        return Err(bad(format!("it has {} parts; a scenario nests at most {MAX_DEPTH} deep", parts.len())));
+    }
     if parts.iter().any(|part| part.is_empty()) {
         return Err(bad("every part of a dotted key must be non-empty".into()));
     }
@@ -597,6 +617,26 @@ fn apply_override(table: &mut toml::Table, key: &str, value: toml::Value) -> Res
     }
     current.insert(last.to_string(), value);
     Ok(())
+}
+
+/// How deep `table`'s tables and arrays nest (a flat table is 1), counted without
+/// recursion and no further than `MAX_DEPTH` + 1.
+fn nesting(table: &toml::Table) -> usize {
+    let mut deepest = 1;
+    let mut pending: Vec<(&toml::Value, usize)> = table.values().map(|value| (value, 2)).collect();
+    while let Some((value, depth)) = pending.pop() {
+        let inner: Box<dyn Iterator<Item = &toml::Value>> = match value {
+            toml::Value::Table(table) => Box::new(table.values()),
+            toml::Value::Array(items) => Box::new(items.iter()),
+            _ => continue,
+        };
+        deepest = deepest.max(depth);
+        if depth > MAX_DEPTH {
+            break;
+        }
+        pending.extend(inner.map(|value| (value, depth + 1)));
+    }
+    deepest
 }
 
 impl ScenarioFile {

@@ -1,6 +1,8 @@
 //! The Zenoh side of the server: one session, a liveliness token that lets clients find
-//! this server, one queryable that feeds every request to the `Registry`, a liveliness
-//! subscriber that closes the envs of clients that are gone, and a sweeper for idle envs.
+//! this server, one queryable that feeds every request to the `Registry` (with the user
+//! its key names), a liveliness subscriber that follows clients coming and going (the
+//! envs of one that is gone are closed), and a sweeper for idle envs and for envs whose
+//! client never showed a token.
 //! Closing drains: the requests being answered finish and are replied to; later ones are
 //! told `ShuttingDown` at once, so no client waits out its timeout on a server that left.
 //! Memory freed when clients leave is handed back to the system here (`malloc_trim`).
@@ -14,7 +16,7 @@ use arena_protocol::{ClientTag, ErrorCode, ErrorReply, PROTOCOL_VERSION, Reply, 
 use zenoh::Wait;
 use zenoh::sample::SampleKind;
 
-pub use registry::{Limits, Registry, Scenarios};
+pub use registry::{Limits, ORPHAN_GRACE, Registry, Scenarios};
 
 /// How long a closing server keeps answering `ShuttingDown` after the requests in flight
 /// are answered, so requests already on their way get an answer, not a timeout.
@@ -23,6 +25,9 @@ pub const SHUTDOWN_GRACE: Duration = Duration::from_millis(100);
 /// The largest echo reply (bytes): more than any single-env step reply `arena bench`
 /// compares it with (about 1 KB on highway.toml).
 pub const ECHO_MAX_REPLY: usize = 64 * 1024;
+
+/// How often freed memory is handed back when nothing was closed.
+const TRIM_PERIOD: Duration = Duration::from_secs(5);
 
 /// Hands back to the system the memory freed by closed envs and departed sessions. glibc
 /// keeps freed memory in its per-thread arenas, so without this a server's resident size
@@ -63,7 +68,8 @@ impl Server {
         let server_id = session.zid().to_string();
         let registry = Arc::new(Registry::new(server_id.clone(), scenarios, limits));
 
-        let rpc = keys::server_rpc(prefix, &server_id)?;
+        let rpc = keys::server_rpc_queryable(prefix, &server_id)?;
+        let (rpc_prefix, rpc_server) = (prefix.to_string(), server_id.clone());
         let handler = Arc::clone(&registry);
         let accepting = Arc::new(RwLock::new(true));
         let gate = Arc::clone(&accepting);
@@ -84,7 +90,8 @@ impl Server {
                 let open = gate.read().unwrap_or_else(|poisoned| poisoned.into_inner());
                 let answer = if *open {
                     let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
-                    handler.handle(&bytes)
+                    let user = keys::rpc_user(&rpc_prefix, &rpc_server, query.key_expr().as_str());
+                    handler.handle_from(user.as_deref(), &bytes)
                 } else {
                     shutting_down.clone()
                 };
@@ -117,32 +124,44 @@ impl Server {
         let clients = session
             .liveliness()
             .declare_subscriber(keys::clients_liveliness_wildcard(prefix)?)
+            .history(true)
             .callback(move |sample| {
-                if sample.kind() != SampleKind::Delete {
+                let tag = keys::client_tag_from_liveliness(&prefix_owned, sample.key_expr().as_str());
+                let Some(client) = tag.and_then(|tag| tag.parse::<ClientTag>().ok()) else { return };
+                if sample.kind() == SampleKind::Put {
+                    watcher.client_arrived(client);
                     return;
                 }
-                let tag = keys::client_tag_from_liveliness(&prefix_owned, sample.key_expr().as_str());
-                if let Some(client) = tag.and_then(|tag| tag.parse::<ClientTag>().ok()) {
-                    let closed = watcher.drop_client(client);
-                    if closed > 0 {
-                        return_freed_memory();
-                        eprintln!("arena-server: client {client} is gone; closed its {closed} env(s)");
-                    }
+                let closed = watcher.drop_client(client);
+                if closed > 0 {
+                    return_freed_memory();
+                    eprintln!("arena-server: client {client} is gone; closed its {closed} env(s)");
                 }
             })
             .await?;
 
         let sweeper_registry = Arc::clone(&registry);
-        // Every few seconds at most: Zenoh's idle connection threads exit about 10 s after
-        // a burst of clients, and the memory they freed is handed back on the next sweep.
-        let period = (limits.idle_timeout / 4).clamp(Duration::from_millis(100), Duration::from_secs(5));
+        // Every second at most, so envs of clients that showed no token are gone within
+        // `ORPHAN_GRACE` + 1 s.
+        let period = (limits.idle_timeout / 4).clamp(Duration::from_millis(100), Duration::from_secs(1));
         let sweeper = tokio::spawn(async move {
+            let mut last_trim = Instant::now();
             loop {
                 tokio::time::sleep(period).await;
-                let closed = sweeper_registry.reclaim_idle(Instant::now());
-                return_freed_memory();
-                if closed > 0 {
-                    eprintln!("arena-server: closed {closed} idle env(s)");
+                let now = Instant::now();
+                let idle = sweeper_registry.reclaim_idle(now);
+                let orphans = sweeper_registry.reclaim_orphans(now);
+                // Zenoh's idle connection threads exit about 10 s after a burst of
+                // clients; what they freed is handed back every few seconds.
+                if idle + orphans > 0 || now.duration_since(last_trim) >= TRIM_PERIOD {
+                    return_freed_memory();
+                    last_trim = now;
+                }
+                if idle > 0 {
+                    eprintln!("arena-server: closed {idle} idle env(s)");
+                }
+                if orphans > 0 {
+                    eprintln!("arena-server: closed {orphans} env(s) of clients that showed no liveliness token");
                 }
             }
         });

@@ -3,7 +3,7 @@
 //! ownership of envs, sequence numbers that make retries safe, env limits and
 //! reclaiming — so each can be tested without a network and the queryable stays thin.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use arena_protocol::{
     BatchItem, BatchStep, ClientId, ClientTag, CreateOptions, EnvId, ErrorCode, ErrorReply, MAX_MESSAGE_BYTES,
     OptionValue, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetReply, ScenarioSource, ServerInfo,
-    StepReply, decode, encode, peek_version,
+    StepReply, bounds, decode, encode, peek_version,
 };
 
 use rayon::prelude::*;
@@ -24,7 +24,8 @@ use arena_sim::scenario::{BUILTIN, Scenario};
 pub struct Limits {
     /// Most envs alive at once.
     pub max_envs: usize,
-    /// Most envs one client may hold at once, so one client cannot take a shared server.
+    /// Most envs one party may hold at once: an authenticated user (the user named by the
+    /// key a request came on), else a client id.
     pub max_envs_per_client: usize,
     /// An env nobody touched for this long is closed.
     pub idle_timeout: Duration,
@@ -36,12 +37,33 @@ impl Default for Limits {
     }
 }
 
+/// Who an env counts against in `Limits::max_envs_per_client`: the user a site's access
+/// control let the request through as (the last chunk of its key), else its client id.
+/// An open server cannot tell parties apart better than this: ids cost nothing.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+enum Party {
+    User(String),
+    Client(ClientId),
+}
+
+impl Party {
+    fn of(user: Option<&str>, client: ClientId) -> Party {
+        user.map_or(Party::Client(client), |user| Party::User(user.to_string()))
+    }
+}
+
+/// How long an env's owner has for its liveliness token to reach the server after the
+/// create: envs of a client without a token are closed after this (`reclaim_orphans`).
+pub const ORPHAN_GRACE: Duration = Duration::from_secs(3);
+
 /// One env and what the server remembers about it.
 struct Slot {
     env: Env,
     owner: ClientId,
     /// `owner.tag()`, what its liveliness token shows: computed once, read when clients leave.
     owner_tag: ClientTag,
+    party: Party,
+    created: Instant,
     /// The last mutating request's sequence number and its reply.
     last: Option<(u64, ReplyBody)>,
     last_used: Instant,
@@ -105,9 +127,11 @@ pub struct Registry {
     scenarios: Scenarios,
     limits: Limits,
     envs: Mutex<HashMap<EnvId, Arc<Mutex<Slot>>>>,
-    /// How many envs each client holds (kept with `envs`, under its lock, so a create
-    /// checks the client's limit without visiting every env).
-    held: Mutex<HashMap<ClientId, usize>>,
+    /// How many envs each party holds (kept with `envs`, under its lock, so a create
+    /// checks the party's limit without visiting every env).
+    held: Mutex<HashMap<Party, usize>>,
+    /// Tags of the clients whose liveliness tokens are alive now.
+    live: Mutex<HashSet<ClientTag>>,
     closed: Mutex<Tombstones>,
     /// Env steps taken, for `ServerInfo::steps`.
     steps: AtomicU64,
@@ -116,6 +140,9 @@ pub struct Registry {
     /// Single steps and resets being answered now: batch workers give way to them between
     /// envs, so a client's big batch does not hold up another client's step.
     singles: AtomicUsize,
+    /// The kind of request whose next one panics (`inject_panic`).
+    #[cfg(feature = "test-hooks")]
+    panic_next: Mutex<Option<&'static str>>,
 }
 
 /// Ids of recently closed envs, so a late request gets `EnvClosed` rather than
@@ -206,10 +233,27 @@ impl Registry {
             limits,
             envs: Mutex::new(HashMap::new()),
             held: Mutex::new(HashMap::new()),
+            live: Mutex::new(HashSet::new()),
             closed: Mutex::new(Tombstones::default()),
             steps: AtomicU64::new(0),
             batch_workers: std::sync::OnceLock::new(),
             singles: AtomicUsize::new(0),
+            #[cfg(feature = "test-hooks")]
+            panic_next: Mutex::new(None),
+        }
+    }
+
+    /// Makes the next request of `kind` ("create", "reset" or "step") panic inside the
+    /// server, where a bug would: for the tests that show a panic is contained.
+    #[cfg(feature = "test-hooks")]
+    pub fn inject_panic(&self, kind: &'static str) {
+        *lock(&self.panic_next) = Some(kind);
+    }
+
+    fn panic_if_injected(&self, _kind: &str) {
+        #[cfg(feature = "test-hooks")]
+        if lock(&self.panic_next).take_if(|next| *next == _kind).is_some() {
+            panic!("a panic injected into {_kind} by a test");
         }
     }
 
@@ -223,13 +267,19 @@ impl Registry {
         self.len() == 0
     }
 
-    /// Answers one request, given as the bytes that arrived.
+    /// Answers one request, given as the bytes that arrived, from an unnamed user.
     pub fn handle(&self, bytes: &[u8]) -> Vec<u8> {
-        let body = self.answer(bytes).unwrap_or_else(ReplyBody::Error);
+        self.handle_from(None, bytes)
+    }
+
+    /// Answers one request that came as `user` (named by its key, which only a site's
+    /// access control makes trustworthy): its envs count against that user's limit.
+    pub fn handle_from(&self, user: Option<&str>, bytes: &[u8]) -> Vec<u8> {
+        let body = self.answer(user, bytes).unwrap_or_else(ReplyBody::Error);
         encode(&Reply { version: PROTOCOL_VERSION, body })
     }
 
-    fn answer(&self, bytes: &[u8]) -> Result<ReplyBody, ErrorReply> {
+    fn answer(&self, user: Option<&str>, bytes: &[u8]) -> Result<ReplyBody, ErrorReply> {
         if bytes.len() > MAX_MESSAGE_BYTES {
             return Err(error(
                 ErrorCode::PayloadTooLarge,
@@ -244,13 +294,16 @@ impl Registry {
         if request.version != PROTOCOL_VERSION {
             return Err(wrong_version(request.version));
         }
+        bounds::check(&request).map_err(|e| error(ErrorCode::PayloadTooLarge, e.to_string(), true))?;
         let client = request.client;
+        let party = Party::of(user, client);
         let _single = matches!(request.body, RequestBody::Step { .. } | RequestBody::Reset { .. })
             .then(|| Single::begin(&self.singles));
         match request.body {
-            RequestBody::ServerInfo => Ok(ReplyBody::ServerInfo(self.info())),
-            RequestBody::CreateEnv { scenario, options } => self.create(client, scenario, &options),
+            RequestBody::ServerInfo => Ok(ReplyBody::ServerInfo(self.info(&party))),
+            RequestBody::CreateEnv { scenario, options } => self.create(client, party, scenario, &options),
             RequestBody::Reset { env, seq, seed, options } => self.sequenced(client, env, seq, |slot| {
+                self.panic_if_injected("reset");
                 let outcome = slot.env.reset(seed, &options)?;
                 let mut observations = Vec::with_capacity(outcome.len());
                 let mut infos = Vec::with_capacity(outcome.len());
@@ -282,12 +335,13 @@ impl Registry {
         seq: u64,
         actions: &[(String, arena_protocol::Action)],
     ) -> Result<StepReply, ErrorReply> {
+        self.panic_if_injected("step");
         let reply = step_reply(env, seq, actions)?;
         self.steps.fetch_add(1, Ordering::Relaxed);
         Ok(reply)
     }
 
-    fn info(&self) -> ServerInfo {
+    fn info(&self, party: &Party) -> ServerInfo {
         ServerInfo {
             server_id: self.server_id.clone(),
             version: env!("CARGO_PKG_VERSION").to_string(),
@@ -296,6 +350,7 @@ impl Registry {
             envs: self.len() as u32,
             max_envs: self.limits.max_envs as u32,
             max_envs_per_client: self.limits.max_envs_per_client as u32,
+            yours: self.held_by(party) as u32,
             steps: self.steps.load(Ordering::Relaxed),
             cores: std::thread::available_parallelism().map_or(1, |n| n.get() as u32),
             rss_bytes: resident_bytes(),
@@ -305,11 +360,31 @@ impl Registry {
     fn create(
         &self,
         owner: ClientId,
+        party: Party,
         source: ScenarioSource,
         options: &CreateOptions,
     ) -> Result<ReplyBody, ErrorReply> {
         // Refused before any work: a full server parses and builds nothing.
-        self.has_room(lock(&self.envs).len(), owner)?;
+        self.has_room(lock(&self.envs).len(), &party)?;
+        let build = std::panic::AssertUnwindSafe(|| self.build(source, options));
+        let env = std::panic::catch_unwind(build).unwrap_or_else(|_| {
+            Err(error(ErrorCode::Internal, "creating this env panicked (a server bug); nothing was created", true))
+        })?;
+        let id = EnvId(rand::random::<u128>());
+        let specs = env.specs();
+        let mut envs = lock(&self.envs);
+        // Again under the lock: another create may have taken the last place meanwhile.
+        self.has_room(envs.len(), &party)?;
+        *lock(&self.held).entry(party.clone()).or_default() += 1;
+        let now = Instant::now();
+        let slot = Slot { env, owner, owner_tag: owner.tag(), party, created: now, last: None, last_used: now };
+        envs.insert(id, Arc::new(Mutex::new(slot)));
+        Ok(ReplyBody::Created { env: id, specs })
+    }
+
+    /// The env a create asks for, built from its scenario and options.
+    fn build(&self, source: ScenarioSource, options: &CreateOptions) -> Result<Env, ErrorReply> {
+        self.panic_if_injected("create");
         let overrides: Vec<(String, toml::Value)> =
             options.overrides.iter().map(|(k, v)| (k.clone(), to_toml(v))).collect();
         let (file, text) = match &source {
@@ -325,29 +400,28 @@ impl Registry {
         };
         let scenario = Scenario::parse(file, text, &overrides)
             .map_err(|e| error(ErrorCode::InvalidScenario, e.to_string(), true))?;
-        let id = EnvId(rand::random::<u128>());
-        let env = Env::new(scenario, options, id.0 as u64)?;
-        let specs = env.specs();
-        let mut envs = lock(&self.envs);
-        // Again under the lock: another create may have taken the last place meanwhile.
-        self.has_room(envs.len(), owner)?;
-        let slot = Slot { env, owner, owner_tag: owner.tag(), last: None, last_used: Instant::now() };
-        envs.insert(id, Arc::new(Mutex::new(slot)));
-        *lock(&self.held).entry(owner).or_default() += 1;
-        Ok(ReplyBody::Created { env: id, specs })
+        Env::new(scenario, options, rand::random::<u64>())
     }
 
-    /// Whether one more env fits the server (holding `open`) and the client's share.
-    fn has_room(&self, open: usize, client: ClientId) -> Result<(), ErrorReply> {
+    fn held_by(&self, party: &Party) -> usize {
+        lock(&self.held).get(party).copied().unwrap_or(0)
+    }
+
+    /// Whether one more env fits the server (holding `open`) and the party's share.
+    fn has_room(&self, open: usize, party: &Party) -> Result<(), ErrorReply> {
         let limits = &self.limits;
         if open >= limits.max_envs {
             let message =
                 format!("this server holds its limit of {} envs; close one or use another server", limits.max_envs);
             return Err(error(ErrorCode::TooManyEnvs, message, true));
         }
-        if lock(&self.held).get(&client).copied().unwrap_or(0) >= limits.max_envs_per_client {
+        if self.held_by(party) >= limits.max_envs_per_client {
+            let who = match party {
+                Party::User(user) => format!("user '{user}'"),
+                Party::Client(_) => "this client".to_string(),
+            };
             let message = format!(
-                "this client holds its limit of {} envs on this server (--max-envs-per-client); close one first",
+                "{who} holds its limit of {} envs on this server (--max-envs-per-client); close one first",
                 limits.max_envs_per_client
             );
             return Err(error(ErrorCode::TooManyEnvs, message, true));
@@ -355,13 +429,13 @@ impl Registry {
         Ok(())
     }
 
-    /// Counts `owner`'s env as gone (called under the `envs` lock).
-    fn release(&self, owner: ClientId) {
+    /// Counts `party`'s env as gone (called under the `envs` lock).
+    fn release(&self, party: &Party) {
         let mut held = lock(&self.held);
-        if let Some(count) = held.get_mut(&owner) {
+        if let Some(count) = held.get_mut(party) {
             *count -= 1;
             if *count == 0 {
-                held.remove(&owner);
+                held.remove(party);
             }
         }
     }
@@ -379,6 +453,8 @@ impl Registry {
         }
     }
 
+    /// Runs `f` on the client's env. A panic in it is that env's end, not the server's
+    /// silence: the env, half changed, is closed and the client told at once.
     fn with_env(
         &self,
         client: ClientId,
@@ -386,9 +462,16 @@ impl Registry {
         f: impl FnOnce(&mut Slot) -> Result<ReplyBody, ErrorReply>,
     ) -> Result<ReplyBody, ErrorReply> {
         let slot = self.slot(client, env)?;
-        let mut slot = lock(&slot);
-        slot.last_used = Instant::now();
-        f(&mut slot)
+        let outcome = {
+            let mut slot = lock(&slot);
+            slot.last_used = Instant::now();
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(&mut slot)))
+        };
+        outcome.unwrap_or_else(|_| {
+            let _ = self.close(client, env);
+            let message = "this env panicked while answering (a server bug); it was closed: create a new one";
+            Err(error(ErrorCode::Internal, message, false))
+        })
     }
 
     /// Runs a mutating request once per sequence number: a retry of the last one gets
@@ -478,15 +561,9 @@ impl Registry {
                 )),
             }
         };
-        // A panic stepping one env is that env's error, not the whole batch's silence.
         let guarded = |step: &BatchStep| {
             self.give_way();
-            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| one(step))).unwrap_or_else(|_| {
-                // Half stepped, it cannot be trusted again: closed, like any closed env.
-                let _ = self.close(client, step.env);
-                let message = "stepping this env panicked (a server bug); it was closed: create a new one";
-                BatchItem::Err(error(ErrorCode::Internal, message, false))
-            })
+            one(step)
         };
         match self.batch_workers.get_or_init(batch_workers) {
             Some(workers) if steps.len() >= 4 && workers.current_num_threads() > 1 => {
@@ -499,18 +576,32 @@ impl Registry {
     fn close(&self, client: ClientId, env: EnvId) -> Result<ReplyBody, ErrorReply> {
         self.slot(client, env)?;
         let mut envs = lock(&self.envs);
-        if envs.remove(&env).is_some() {
-            self.release(client);
+        if let Some(slot) = envs.remove(&env) {
+            self.release(&lock(&slot).party);
         }
         drop(envs);
         lock(&self.closed).insert(env, client);
         Ok(ReplyBody::Closed)
     }
 
+    /// Notes that the client whose public tag is `client` has a live liveliness token.
+    pub fn client_arrived(&self, client: ClientTag) {
+        lock(&self.live).insert(client);
+    }
+
     /// Closes every env of the client whose public tag is `client` (its liveliness token
     /// is gone); returns how many.
     pub fn drop_client(&self, client: ClientTag) -> usize {
+        lock(&self.live).remove(&client);
         self.retain(|slot| slot.owner_tag != client)
+    }
+
+    /// Closes the envs whose owner has shown no liveliness token within `ORPHAN_GRACE`
+    /// of creating them; returns how many. Ids cost nothing, so without this one session
+    /// minting ids could hold every place of an open server until the idle timeout.
+    pub fn reclaim_orphans(&self, now: Instant) -> usize {
+        let live = lock(&self.live).clone();
+        self.retain(|slot| live.contains(&slot.owner_tag) || now.saturating_duration_since(slot.created) < ORPHAN_GRACE)
     }
 
     /// Closes envs idle for longer than the limit; returns how many.
@@ -528,7 +619,7 @@ impl Registry {
             let kept = keep(&slot);
             if !kept {
                 closed.insert(*id, slot.owner);
-                self.release(slot.owner);
+                self.release(&slot.party);
             }
             kept
         });

@@ -43,6 +43,10 @@ class ScenarioError(ArenaError, ValueError):
     """A scenario the server does not have, or one that does not validate."""
 
 
+class RequestTooLargeError(ArenaError, ValueError):
+    """A request, or one of its strings or lists, is past its bound (docs/protocol.md, "Bounds")."""
+
+
 class EnvClosedError(ArenaError):
     """The env was closed (by this client, by idling, or because the server forgot it)."""
 
@@ -60,6 +64,7 @@ _BY_CODE = {
     "InvalidOption": ScenarioError,
     "UnknownScenario": ScenarioError,
     "InvalidScenario": ScenarioError,
+    "PayloadTooLarge": RequestTooLargeError,
     "EnvClosed": EnvClosedError,
     "UnknownEnv": EnvClosedError,
 }

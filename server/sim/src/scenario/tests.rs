@@ -186,6 +186,41 @@ fn bad_overrides_are_refused_like_bad_files() {
     assert!(refuse("vehicle.a.lane", toml::Value::Integer(9)).contains("vehicle 'a' is on lane 9"));
 }
 
+/// A value of arrays nested `n` deep around an integer.
+fn nested_arrays(n: usize) -> toml::Value {
+    (0..n).fold(toml::Value::Integer(1), |inner, _| toml::Value::Array(vec![inner]))
+}
+
+fn kind_of(text: &str, overrides: &[(String, toml::Value)]) -> ScenarioErrorKind {
+    Scenario::parse("test.toml", text, overrides).expect_err("refused").kind
+}
+
+#[test]
+fn nesting_past_max_depth_is_refused_in_text_keys_and_values_and_not_below() {
+    // The file itself is depth 1, so n arrays inside it nest 1 + n deep.
+    let deep_text = |n: usize| format!("deep = {}1{}\n{GOOD}", "[".repeat(n), "]".repeat(n));
+    assert!(matches!(kind_of(&deep_text(MAX_DEPTH - 1), &[]), ScenarioErrorKind::Syntax(e) if e.contains("deep")));
+    assert_eq!(kind_of(&deep_text(MAX_DEPTH), &[]), ScenarioErrorKind::TooDeep { depth: MAX_DEPTH + 1 });
+    // Past toml's own recursion limit (80) the parser refuses it; no stack is at risk.
+    assert!(matches!(kind_of(&deep_text(5000), &[]), ScenarioErrorKind::Syntax(_)));
+
+    let key = |parts: usize| vec!["x"; parts].join(".");
+    let one = |key: String, value: toml::Value| vec![(key, value)];
+    let below = kind_of(GOOD, &one(key(MAX_DEPTH), toml::Value::Integer(1)));
+    assert!(matches!(below, ScenarioErrorKind::Syntax(ref e) if e.contains('x')), "{below:?}");
+    let above = kind_of(GOOD, &one(key(MAX_DEPTH + 1), toml::Value::Integer(1)));
+    assert!(matches!(above, ScenarioErrorKind::BadOverride { ref message, .. } if message.contains("17 parts")));
+    // The key that overflowed the server's stack: refused before any table is made.
+    let crash = kind_of(GOOD, &one(format!("{}a", "a.".repeat(15_000)), toml::Value::Integer(1)));
+    assert!(matches!(crash, ScenarioErrorKind::BadOverride { ref message, .. } if message.contains("15001 parts")));
+
+    // A value nests from its key's depth: `sim.x` is depth 2, so its arrays start at 3.
+    let below = kind_of(GOOD, &one("sim.x".into(), nested_arrays(MAX_DEPTH - 2)));
+    assert!(matches!(below, ScenarioErrorKind::Syntax(_)), "{below:?}");
+    let above = kind_of(GOOD, &one("sim.x".into(), nested_arrays(MAX_DEPTH - 1)));
+    assert_eq!(above, ScenarioErrorKind::TooDeep { depth: MAX_DEPTH + 1 });
+}
+
 #[test]
 fn missing_files_are_reported_by_name() {
     let err = Scenario::load(Path::new("/nonexistent/nothing.toml")).unwrap_err();

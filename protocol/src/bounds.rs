@@ -13,13 +13,13 @@ use crate::messages::{Action, CreateOptions, OptionValue, Request, RequestBody, 
 pub const MAX_NAME_BYTES: usize = 128;
 /// Longest inline scenario text (bytes).
 pub const MAX_SCENARIO_TEXT_BYTES: usize = 1 << 20;
-/// Most overrides of a create, or options of a reset.
+/// Most overrides of a create or of a reset.
 pub const MAX_OPTIONS: usize = 64;
-/// Longest override or option key (bytes).
+/// Longest override key (bytes).
 pub const MAX_OPTION_KEY_BYTES: usize = 256;
-/// Most dot-separated parts of an override or option key (`overrides.vehicle.ac.speed` has 4).
+/// Most dot-separated parts of an override key (`vehicle.ac.speed` has 3).
 pub const MAX_OPTION_KEY_PARTS: usize = 10;
-/// Longest string value of an override or option (bytes).
+/// Longest string value of an override (bytes).
 pub const MAX_OPTION_STRING_BYTES: usize = 64 * 1024;
 /// Most actions in one step (one per agent).
 pub const MAX_ACTIONS: usize = 1024;
@@ -103,7 +103,7 @@ fn create(scenario: &ScenarioSource, create: &CreateOptions) -> Result<(), Bound
 pub fn check(request: &Request) -> Result<(), BoundError> {
     match &request.body {
         RequestBody::CreateEnv { scenario, options } => create(scenario, options),
-        RequestBody::Reset { options: reset, .. } => options("reset option", reset),
+        RequestBody::Reset { options: reset, .. } => options("reset override", &reset.overrides),
         RequestBody::Step { actions: step, .. } => actions(step),
         RequestBody::StepBatch { steps } => steps.iter().try_for_each(|step| actions(&step.actions)),
         RequestBody::ServerInfo
@@ -125,6 +125,7 @@ mod tests {
     }
 
     fn reset_with(options: Vec<(String, OptionValue)>) -> Request {
+        let options = crate::ResetOptions { overrides: options };
         Request::new(ClientId(1), RequestBody::Reset { env: EnvId(1), seq: 1, seed: None, options })
     }
 
@@ -153,7 +154,7 @@ mod tests {
     #[test]
     fn override_and_option_keys_are_bounded_in_parts_and_bytes() {
         let one = |key: String| vec![(key, OptionValue::Int(1))];
-        for (make, kind) in [(create_with as fn(_) -> Request, "override"), (reset_with, "reset option")] {
+        for (make, kind) in [(create_with as fn(_) -> Request, "override"), (reset_with, "reset override")] {
             let (below, above) = (key_of_parts(MAX_OPTION_KEY_PARTS), key_of_parts(MAX_OPTION_KEY_PARTS + 1));
             bound_holds(make(one(below)), make(one(above.clone())), "parts", MAX_OPTION_KEY_PARTS);
             assert!(check(&make(one(above))).unwrap_err().what.starts_with(kind));

@@ -200,7 +200,7 @@ mod tests {
         ];
         assert_eq!(encode(&step), expected);
 
-        // Reset { env: EnvId(250), seq: 251, seed: Some(u64::MAX), options: [("k", Int(-3))] }
+        // Reset { env: EnvId(250), seq: 251, seed: Some(u64::MAX), options: { overrides: [("k", Int(-3))] } }
         // under Request { version: 1, client: ClientId(0) }.
         let reset = Request {
             version: 1,
@@ -209,7 +209,7 @@ mod tests {
                 env: EnvId(250),
                 seq: 251,
                 seed: Some(u64::MAX),
-                options: vec![("k".into(), OptionValue::Int(-3))],
+                options: crate::ResetOptions { overrides: vec![("k".into(), OptionValue::Int(-3))] },
             },
         };
         #[rustfmt::skip]
@@ -218,7 +218,7 @@ mod tests {
             250,                                    // env 250: the largest one-byte varint
             251, 251, 0,                            // seq 251: 251 + u16 LE
             1, 253, 255, 255, 255, 255, 255, 255, 255, 255, // Some, then u64::MAX: 253 + u64 LE
-            1, 1, b'k',                             // one option, "k"
+            1, 1, b'k',                             // one override (a struct is its fields), "k"
             1, 5,                                   // OptionValue::Int (1), -3 zigzag -> 5
         ];
         assert_eq!(encode(&reset), expected);

@@ -11,6 +11,9 @@
 //!   2, standard config, with a [`MAX_MESSAGE_BYTES`] limit), so the codec is one file to
 //!   change; [`DecodeError`] says whether bytes were too large, trailing or malformed.
 //! - [`keys`]: key-expression builders and parsers; nothing else formats keys.
+//! - [`info`]: the keys, types and order of every agent's info, and [`EndReason`].
+//! - [`MetaAction`], [`ActionType`], [`ObservationKind`], [`Style`], [`Game`]: closed
+//!   sets of choices, each with `ALL`, `name`, `Display` and `FromStr`.
 //! - [`bounds`]: the size of every string and list a request may carry.
 //! - [`Space`]: Box, Discrete and Dict specs, with checks for observations and actions.
 //! - [`ErrorReply`]: a stable [`ErrorCode`], a message for people, and whether the env
@@ -35,18 +38,24 @@
 pub mod bounds;
 mod codec;
 mod error;
+pub mod info;
 pub mod keys;
 mod messages;
+mod names;
 #[cfg(feature = "session")]
 pub mod session;
 mod spaces;
 
 pub use codec::{MAX_MESSAGE_BYTES, decode, encode, peek_version};
 pub use error::{DecodeError, ErrorCode, ErrorReply, KeyError};
+pub use info::{EndReason, Info, InfoKind, InfoValue};
 pub use messages::*;
+pub use names::UnknownName;
 pub use spaces::{DType, Space};
 
 /// The protocol version every message carries first; bumped on any incompatible change
 /// (3: client liveliness tokens carry `ClientId::tag`, and the server id is its Zenoh id;
-/// 4: `ServerInfo::yours`, and requests of a named user travel on `keys::user_rpc`).
-pub const PROTOCOL_VERSION: u16 = 4;
+/// 4: `ServerInfo::yours`, and requests of a named user travel on `keys::user_rpc`;
+/// 5: one row per agent in step and reset replies, `ResetOptions`, infos of one fixed
+/// schema with no strings, `info::SCHEMA`).
+pub const PROTOCOL_VERSION: u16 = 5;

@@ -7,6 +7,8 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ErrorReply;
+use crate::info::Info;
+use crate::names::named;
 use crate::spaces::Space;
 
 macro_rules! hex_id {
@@ -87,8 +89,8 @@ pub enum RequestBody {
         seq: u64,
         /// Seed of the episode; none continues the env's seed stream.
         seed: Option<u64>,
-        /// Options; unknown keys are ignored.
-        options: Vec<(String, OptionValue)>,
+        /// What this episode changes of the scenario.
+        options: ResetOptions,
     },
     /// One env step.
     Step {
@@ -152,6 +154,14 @@ pub enum ScenarioSource {
         /// The TOML text.
         text: String,
     },
+}
+
+/// Options of `Reset`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct ResetOptions {
+    /// (dotted key, value) overrides of the scenario for this episode only, applied after
+    /// its `[vary]` draws and read exactly as `CreateOptions::overrides` are.
+    pub overrides: Vec<(String, OptionValue)>,
 }
 
 /// Options of `CreateEnv`.
@@ -220,9 +230,8 @@ impl FromStr for BuiltinPolicy {
             ["expert"] => Ok(BuiltinPolicy::Gt { style: None, game: Game::Stackelberg }),
             ["idm"] => Ok(BuiltinPolicy::Idm),
             ["gt", style, game] => {
-                let style = Style::ALL.into_iter().find(|s| s.name() == *style).ok_or_else(unknown)?;
-                let game =
-                    [Game::Nash, Game::Stackelberg].into_iter().find(|g| g.name() == *game).ok_or_else(unknown)?;
+                let style = style.parse::<Style>().map_err(|_| unknown())?;
+                let game = game.parse::<Game>().map_err(|_| unknown())?;
                 Ok(BuiltinPolicy::Gt { style: Some(style), game })
             }
             _ => Err(unknown()),
@@ -230,31 +239,7 @@ impl FromStr for BuiltinPolicy {
     }
 }
 
-impl Game {
-    /// `nash` or `stackelberg`, as scenario files spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Game::Nash => "nash",
-            Game::Stackelberg => "stackelberg",
-        }
-    }
-}
-
-impl Style {
-    /// The three, from the most to the least aggressive.
-    pub const ALL: [Style; 3] = [Style::Aggressive, Style::Normal, Style::Conservative];
-
-    /// As scenario files spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Style::Aggressive => "aggressive",
-            Style::Normal => "normal",
-            Style::Conservative => "conservative",
-        }
-    }
-}
-
-/// The paper's driving styles (Tables I and III).
+/// The paper's driving styles (Tables I and III), from the most to the least aggressive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Style {
     /// Large safety margin traded for speed.
@@ -265,6 +250,8 @@ pub enum Style {
     Conservative,
 }
 
+named!(Style, "style", { Aggressive => "aggressive", Normal => "normal", Conservative => "conservative" });
+
 /// The game the built-in AV plays when asked for `expert` infos.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Game {
@@ -273,6 +260,8 @@ pub enum Game {
     /// Stackelberg equilibrium, eq. (17)-(18).
     Stackelberg,
 }
+
+named!(Game, "game", { Nash => "nash", Stackelberg => "stackelberg" });
 
 /// A value of an option or override.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -297,6 +286,8 @@ pub enum ActionType {
     Continuous,
 }
 
+named!(ActionType, "action type", { Meta => "meta", Continuous => "continuous" });
+
 /// What agents observe.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum ObservationKind {
@@ -306,21 +297,45 @@ pub enum ObservationKind {
     KinematicsWithMask,
 }
 
-/// Meta action: change to the lane on the left.
-pub const META_LANE_LEFT: u32 = 0;
-/// Meta action: keep lane and target speed.
-pub const META_IDLE: u32 = 1;
-/// Meta action: change to the lane on the right.
-pub const META_LANE_RIGHT: u32 = 2;
-/// Meta action: next higher target speed.
-pub const META_FASTER: u32 = 3;
-/// Meta action: next lower target speed.
-pub const META_SLOWER: u32 = 4;
+named!(ObservationKind, "observation", { Kinematics => "kinematics", KinematicsWithMask => "kinematics_with_mask" });
+
+/// highway-env's meta actions, Discrete(`MetaAction::ALL.len()`): on the wire (`Action::Meta`)
+/// and in masks each is its code, the declaration order.
+#[repr(u32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum MetaAction {
+    /// Change to the lane on the left.
+    LaneLeft = 0,
+    /// Keep lane and target speed.
+    Idle = 1,
+    /// Change to the lane on the right.
+    LaneRight = 2,
+    /// Next higher target speed.
+    Faster = 3,
+    /// Next lower target speed.
+    Slower = 4,
+}
+
+named!(MetaAction, "meta action", {
+    LaneLeft => "lane_left", Idle => "idle", LaneRight => "lane_right", Faster => "faster", Slower => "slower",
+});
+
+impl MetaAction {
+    /// Its code: the index of its place in Discrete(`ALL.len()`).
+    pub fn code(self) -> u32 {
+        self as u32
+    }
+
+    /// The meta action of a code, if there is one.
+    pub fn from_code(code: u32) -> Option<MetaAction> {
+        Self::ALL.get(usize::try_from(code).ok()?).copied()
+    }
+}
 
 /// One agent's action.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Action {
-    /// A meta action of Discrete(5): `META_LANE_LEFT` .. `META_SLOWER`.
+    /// A meta action's code (`MetaAction::code`), 0 ..= 4.
     Meta(u32),
     /// [acceleration, lateral preview target], each in [-1, 1]: the server scales them to
     /// m/s^2 (times 6) and to an offset from the current lane's centre (times the lane
@@ -498,56 +513,53 @@ pub enum Observation {
     Dict(Vec<(String, Tensor)>),
 }
 
-/// The reply to `Reset`.
+/// One agent at the start of an episode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AgentStart {
+    /// Its name.
+    pub agent: String,
+    /// What it observes.
+    pub observation: Observation,
+    /// Its info (`info::SCHEMA` keys, zero where nothing happened yet).
+    pub info: Info,
+}
+
+/// The reply to `Reset`: one row per possible agent, in `possible_agents` order.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ResetReply {
     /// The request's sequence number.
     pub seq: u64,
     /// Per agent.
-    pub observations: Vec<(String, Observation)>,
-    /// Per agent.
-    pub infos: Vec<(String, Info)>,
+    pub agents: Vec<AgentStart>,
 }
 
-/// The reply to `Step`: the five dicts, keyed by every agent live before the step.
+/// One agent's results of a step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AgentStep {
+    /// Its name.
+    pub agent: String,
+    /// What it observes after the step.
+    pub observation: Observation,
+    /// Its reward for the step (docs/rewards.md).
+    pub reward: f64,
+    /// Its episode ended in this step (crash, off the road, end of road or lane).
+    pub terminated: bool,
+    /// Its episode reached `max_cycles` in this step (never with `terminated`).
+    pub truncated: bool,
+    /// Its info, the same keys in the same order on every step (`info::SCHEMA`).
+    pub info: Info,
+}
+
+/// The reply to `Step`: one row per agent live before the step, in `possible_agents`
+/// order.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StepReply {
     /// The request's sequence number.
     pub seq: u64,
-    /// Per agent.
-    pub observations: Vec<(String, Observation)>,
-    /// Per agent.
-    pub rewards: Vec<(String, f64)>,
-    /// Per agent.
-    pub terminations: Vec<(String, bool)>,
-    /// Per agent.
-    pub truncations: Vec<(String, bool)>,
-    /// Per agent.
-    pub infos: Vec<(String, Info)>,
+    /// Per agent live before the step.
+    pub steps: Vec<AgentStep>,
     /// Agents live after the step.
     pub agents: Vec<String>,
-}
-
-/// An agent's info dict.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-pub struct Info {
-    /// Entries, in a fixed order.
-    pub values: Vec<(String, InfoValue)>,
-}
-
-/// An info value.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub enum InfoValue {
-    /// A float.
-    F64(f64),
-    /// A boolean.
-    Bool(bool),
-    /// A string.
-    Str(String),
-    /// An integer.
-    I64(i64),
-    /// Floats.
-    F64s(Vec<f64>),
 }
 
 /// A rendered frame.
@@ -572,6 +584,7 @@ mod tests {
     use crate::PROTOCOL_VERSION;
     use crate::codec::{decode, encode, peek_version};
     use crate::error::ErrorCode;
+    use crate::info::InfoValue;
     use crate::spaces::DType;
 
     fn observation() -> Observation {
@@ -602,29 +615,34 @@ mod tests {
     }
 
     fn step_reply() -> StepReply {
+        let info = Info {
+            values: vec![
+                ("cost".into(), InfoValue::F64(2.0)),
+                ("crashed".into(), InfoValue::Bool(true)),
+                ("lane".into(), InfoValue::I64(1)),
+                ("expert_action".into(), InfoValue::F64s(vec![0.5, -1.0])),
+            ],
+        };
+        let b_observation = Observation::Tensor(Tensor::new(vec![1], TensorData::I64(vec![-9])).unwrap());
         StepReply {
             seq: 3,
-            observations: vec![
-                ("ego".into(), observation()),
-                ("b".into(), Observation::Tensor(Tensor::new(vec![1], TensorData::I64(vec![-9])).unwrap())),
-            ],
-            rewards: vec![("ego".into(), -1.5), ("b".into(), 0.25)],
-            terminations: vec![("ego".into(), false), ("b".into(), true)],
-            truncations: vec![("ego".into(), true), ("b".into(), false)],
-            infos: vec![
-                (
-                    "ego".into(),
-                    Info {
-                        values: vec![
-                            ("cost".into(), InfoValue::F64(2.0)),
-                            ("crashed".into(), InfoValue::Bool(true)),
-                            ("style".into(), InfoValue::Str("normal".into())),
-                            ("lane".into(), InfoValue::I64(1)),
-                            ("expert_action".into(), InfoValue::F64s(vec![0.5, -1.0])),
-                        ],
-                    },
-                ),
-                ("b".into(), Info::default()),
+            steps: vec![
+                AgentStep {
+                    agent: "ego".into(),
+                    observation: observation(),
+                    reward: -1.5,
+                    terminated: false,
+                    truncated: true,
+                    info,
+                },
+                AgentStep {
+                    agent: "b".into(),
+                    observation: b_observation,
+                    reward: 0.25,
+                    terminated: true,
+                    truncated: false,
+                    info: Info::default(),
+                },
             ],
             agents: vec![],
         }
@@ -664,13 +682,18 @@ mod tests {
                 env,
                 seq: 1,
                 seed: Some(42),
-                options: vec![("k".into(), OptionValue::Bool(true)), ("i".into(), OptionValue::Int(-3))],
+                options: ResetOptions {
+                    overrides: vec![("k".into(), OptionValue::Bool(true)), ("i".into(), OptionValue::Int(-3))],
+                },
             },
-            RequestBody::Reset { env, seq: u64::MAX, seed: None, options: vec![] },
+            RequestBody::Reset { env, seq: u64::MAX, seed: None, options: ResetOptions::default() },
             RequestBody::Step {
                 env,
                 seq: 2,
-                actions: vec![("ego".into(), Action::Meta(META_FASTER)), ("b".into(), Action::Continuous([0.5, -1.0]))],
+                actions: vec![
+                    ("ego".into(), Action::Meta(MetaAction::Faster.code())),
+                    ("b".into(), Action::Continuous([0.5, -1.0])),
+                ],
             },
             RequestBody::StepBatch {
                 steps: vec![
@@ -705,8 +728,7 @@ mod tests {
             ReplyBody::Created { env: EnvId(5), specs: specs() },
             ReplyBody::Reset(ResetReply {
                 seq: 1,
-                observations: vec![("ego".into(), observation())],
-                infos: vec![("ego".into(), Info::default())],
+                agents: vec![AgentStart { agent: "ego".into(), observation: observation(), info: Info::default() }],
             }),
             ReplyBody::Step(step_reply()),
             ReplyBody::StepBatch(vec![BatchItem::Ok(step_reply()), BatchItem::Err(error.clone())]),
@@ -813,7 +835,10 @@ mod tests {
     }
 
     #[test]
-    fn meta_action_constants_follow_the_documented_order() {
-        assert_eq!([META_LANE_LEFT, META_IDLE, META_LANE_RIGHT, META_FASTER, META_SLOWER], [0, 1, 2, 3, 4]);
+    fn meta_action_codes_follow_the_documented_order() {
+        assert_eq!(MetaAction::ALL.map(MetaAction::code), [0, 1, 2, 3, 4]);
+        assert_eq!(MetaAction::ALL.map(MetaAction::name), ["lane_left", "idle", "lane_right", "faster", "slower"]);
+        assert_eq!(MetaAction::from_code(4), Some(MetaAction::Slower));
+        assert_eq!(MetaAction::from_code(5), None);
     }
 }

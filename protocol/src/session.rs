@@ -7,7 +7,8 @@ use std::time::Duration;
 /// The endpoint a server listens on and a client connects to when none is given.
 pub const DEFAULT_ENDPOINT: &str = "tcp/127.0.0.1:7447";
 
-/// Seconds a client waits for a reply by default, in every client (Rust, CLI, Python).
+/// Seconds each attempt of a call waits for its reply by default, in every client (Rust,
+/// CLI, Python); a call that got none is resent `retries` times (default 2).
 pub const DEFAULT_TIMEOUT: f64 = 10.0;
 
 /// Seconds a Python client waits for a server to appear when it connects, by default:

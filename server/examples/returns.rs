@@ -4,7 +4,7 @@
 //!
 //! Run: `cargo run --release -p arena-server --example returns [EPISODES]` (default 20).
 
-use arena_protocol::{Action, ActionType, CreateOptions, Game, InfoValue};
+use arena_protocol::{Action, ActionType, CreateOptions, Game, Info, InfoValue, MetaAction, ResetOptions};
 use arena_server::env::Env;
 use arena_sim::scenario::BUILTIN;
 use rand::{RngExt, SeedableRng};
@@ -19,34 +19,31 @@ enum Policy {
 
 /// One episode's return for the first agent, and how it ended.
 fn episode(env: &mut Env, policy: Policy, seed: u64, rng: &mut ChaCha8Rng) -> (f64, String) {
-    let reset = env.reset(Some(seed), &[]).expect("a built-in scenario resets");
-    let agent = reset[0].0.clone();
-    let mut expert = expert_action(&reset[0].2.values);
-    let (mut total, mut reason) = (0.0, String::new());
+    let reset = env.reset(Some(seed), &ResetOptions::default()).expect("a built-in scenario resets");
+    let agent = reset[0].agent.clone();
+    let mut expert = expert_action(&reset[0].info);
+    let mut total = 0.0;
     loop {
         let action = match policy {
             Policy::Idle => None,
-            Policy::Random => Some(Action::Meta(rng.random_range(0..5))),
+            Policy::Random => Some(Action::Meta(rng.random_range(0..MetaAction::ALL.len() as u32))),
             Policy::Expert => expert.map(Action::Meta),
         };
         let actions: Vec<(String, Action)> = action.map(|a| (agent.clone(), a)).into_iter().collect();
         let step = env.step(&actions).expect("a valid step").remove(0);
         total += step.reward;
-        expert = expert_action(&step.info.values);
-        if let Some((_, InfoValue::Str(why))) = step.info.values.iter().find(|(k, _)| k == "end_reason") {
-            reason = why.clone();
-        }
+        expert = expert_action(&step.info);
         if step.terminated || step.truncated {
-            return (total, reason);
+            return (total, step.info.end_reason().map_or("unknown", |end| end.name()).to_string());
         }
     }
 }
 
-fn expert_action(info: &[(String, InfoValue)]) -> Option<u32> {
-    info.iter().find_map(|(k, v)| match (k.as_str(), v) {
-        ("expert_action", InfoValue::I64(a)) => u32::try_from(*a).ok(),
+fn expert_action(info: &Info) -> Option<u32> {
+    match info.get(arena_protocol::info::EXPERT_ACTION)? {
+        InfoValue::I64(a) => u32::try_from(*a).ok(),
         _ => None,
-    })
+    }
 }
 
 fn main() {

@@ -61,7 +61,7 @@ fn a_highway_step_allocates_only_what_its_reply_owns() {
     let scenario = builtin("highway").expect("built in").expect("parses");
     let options = CreateOptions { observation: Some(ObservationKind::Kinematics), ..CreateOptions::default() };
     let mut env = Env::new(scenario, &options, 1).expect("highway makes an env");
-    env.reset(Some(4), &[]).expect("reset");
+    env.reset(Some(4), &arena_protocol::ResetOptions::default()).expect("reset");
     let actions = vec![("ego_0".to_string(), Action::Meta(1))];
     // Buffers grow to their working size in the first steps (a lane's neighbour list
     // meets its most cars), then stay.

@@ -48,8 +48,16 @@ async fn serves_then_stops_on_sigterm() {
     match info.expect("the server answered").body {
         ReplyBody::ServerInfo(info) => {
             assert_eq!((info.server_id.as_str(), info.max_envs, info.envs), (server_id.as_str(), 4, 0));
-            let expected =
-                ["highway", "highway-gt", "merge", "merge-ac", "merge-random", "overtake", "overtake-random"];
+            let expected = [
+                "highway",
+                "highway-gt",
+                "merge",
+                "merge-ac",
+                "merge-duo",
+                "merge-random",
+                "overtake",
+                "overtake-random",
+            ];
             assert_eq!(info.scenarios, expected);
         }
         other => panic!("{other:?}"),
@@ -174,7 +182,7 @@ async fn sigterm_under_load_answers_every_request_then_exits_0() {
                 options: Default::default(),
             };
             let Some(ReplyBody::Created { env, .. }) = ask(&session, &key, create).await else { panic!("created") };
-            let reset = RequestBody::Reset { env, seq: 0, seed: Some(1), options: vec![] };
+            let reset = RequestBody::Reset { env, seq: 0, seed: Some(1), options: Default::default() };
             assert!(matches!(ask(&session, &key, reset).await, Some(ReplyBody::Reset(_))));
             let (mut steps, mut seq) = (0u64, 0u64);
             loop {
@@ -184,7 +192,7 @@ async fn sigterm_under_load_answers_every_request_then_exits_0() {
                     // An episode ran out (40 steps): start another.
                     Some(ReplyBody::Error(e)) if e.code == arena_protocol::ErrorCode::AgentNotLive => {
                         seq += 1;
-                        let reset = RequestBody::Reset { env, seq, seed: None, options: vec![] };
+                        let reset = RequestBody::Reset { env, seq, seed: None, options: Default::default() };
                         match ask(&session, &key, reset).await {
                             Some(ReplyBody::Reset(_)) => {}
                             other => return (steps, other),

@@ -5,7 +5,7 @@
 //! within a second of the continuous one, neither colliding.
 
 use arena_paper::{PaperOptions, PaperScenario};
-use arena_protocol::{Action, ActionType, CreateOptions, Game, Info, InfoValue};
+use arena_protocol::{Action, ActionType, CreateOptions, EndReason, Game, Info, InfoValue, ResetOptions};
 use arena_server::env::Env;
 use arena_sim::dynamics::Style;
 use arena_sim::scenario::builtin;
@@ -15,11 +15,7 @@ fn value<'a>(info: &'a Info, key: &str) -> &'a InfoValue {
 }
 
 fn number(info: &Info, key: &str) -> f64 {
-    match value(info, key) {
-        InfoValue::F64(x) => *x,
-        InfoValue::I64(x) => *x as f64,
-        other => panic!("{key}: {other:?}"),
-    }
+    info.number(key).unwrap_or_else(|| panic!("{key}: {:?}", info.get(key)))
 }
 
 /// One episode of ec_0 replaying the expert: per step (time, expert sigma, lateral
@@ -27,15 +23,15 @@ fn number(info: &Info, key: &str) -> f64 {
 struct Replay {
     decisions: Vec<(f64, i64)>,
     lanes: Vec<(f64, i64)>,
-    end: String,
+    end: EndReason,
 }
 
 fn replay(action_type: ActionType) -> Replay {
     let options =
         CreateOptions { action_type: Some(action_type), expert: Some(Game::Stackelberg), ..CreateOptions::default() };
     let mut env = Env::new(builtin("merge").unwrap().unwrap(), &options, 0).unwrap();
-    let mut info = env.reset(Some(0), &[]).unwrap().remove(0).2;
-    let (mut decisions, mut lanes, mut end) = (Vec::new(), Vec::new(), String::new());
+    let mut info = env.reset(Some(0), &ResetOptions::default()).unwrap().remove(0).info;
+    let (mut decisions, mut lanes, mut end) = (Vec::new(), Vec::new(), EndReason::Running);
     for k in 0..200 {
         let t = k as f64 * 0.1;
         decisions.push((t, number(&info, "expert_sigma") as i64));
@@ -48,9 +44,7 @@ fn replay(action_type: ActionType) -> Replay {
         lanes.push((t + 0.1, number(&step.info, "lane") as i64));
         info = step.info;
         if step.terminated || step.truncated {
-            if let InfoValue::Str(why) = value(&info, "end_reason") {
-                end = why.clone();
-            }
+            end = info.end_reason().expect("an end reason");
             break;
         }
     }
@@ -83,7 +77,7 @@ fn the_continuous_expert_decides_at_arena_papers_t_c_and_the_meta_expert_merges_
     let continuous = replay(ActionType::Continuous);
     let meta = replay(ActionType::Meta);
     for run in [&continuous, &meta] {
-        assert_eq!(run.end, "time_limit", "no collision, no lane end");
+        assert_eq!(run.end, EndReason::TimeLimit, "no collision, no lane end");
     }
     let t_c = decision_time(&continuous).expect("the expert decides to merge");
     let expected = paper.t_c.expect("arena paper's normal EC merges");

@@ -28,14 +28,14 @@ async fn agents_leave_at_once_and_never_return() {
     let mut env =
         harness.env_with(&client, "merge", CreateOptions { max_cycles: Some(400), ..Default::default() }).await;
     let reset = env.reset(Some(0), vec![]).await.unwrap();
-    assert_eq!(reset.observations.len(), 1);
+    assert_eq!(reset.agents.len(), 1);
     // Steer left into the adjacent car's lane again and again: ec merges or crashes;
     // either way it must finish before the lane ends and leave at once.
     let mut finished = false;
     for _ in 0..400 {
         let step = env.step(meta("ec_0", 0)).await.unwrap();
-        assert_eq!(step.rewards.len(), 1, "every agent live before the step is in every dict");
-        if step.terminations[0].1 || step.truncations[0].1 {
+        assert_eq!(step.steps.len(), 1, "every agent live before the step has its row");
+        if step.steps[0].terminated || step.steps[0].truncated {
             assert!(step.agents.is_empty(), "a finished agent leaves `agents` in the same step");
             finished = true;
             break;
@@ -46,7 +46,7 @@ async fn agents_leave_at_once_and_never_return() {
     assert_eq!(code(env.step(meta("ec_0", 1)).await), ErrorCode::AgentNotLive);
     assert_eq!(code(env.step(vec![]).await), ErrorCode::AgentNotLive);
     let again = env.reset(Some(0), vec![]).await.unwrap();
-    assert_eq!(again.observations, reset.observations, "reset brings agents back with the same start");
+    assert_eq!(again.agents, reset.agents, "reset brings agents back with the same start");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -60,8 +60,7 @@ async fn missing_action_is_idle() {
     for _ in 0..3 {
         let with_idle = a.step(meta("ego_0", 1)).await.unwrap();
         let without = b.step(vec![]).await.unwrap();
-        assert_eq!(with_idle.observations, without.observations);
-        assert_eq!(with_idle.rewards, without.rewards);
+        assert_eq!(with_idle.steps, without.steps);
     }
 }
 
@@ -75,23 +74,23 @@ async fn every_agent_truncates_at_exactly_max_cycles() {
     env.reset(Some(1), vec![]).await.unwrap();
     for cycle in 1..=4 {
         let step = env.step(vec![]).await.unwrap();
-        assert_eq!(step.truncations[0].1, cycle == 4, "cycle {cycle}");
+        assert_eq!(step.steps[0].truncated, cycle == 4, "cycle {cycle}");
     }
     assert_eq!(code(env.step(vec![]).await), ErrorCode::AgentNotLive);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn unknown_reset_options_are_refused_by_name_and_overrides_reach_the_episode() {
+async fn reset_overrides_of_unknown_keys_are_refused_by_name_and_good_ones_reach_the_episode() {
     let harness = common::start().await;
     let client = harness.client().await;
     let mut env = harness.env(&client, "merge").await;
     let plain = env.reset(Some(4), vec![]).await.unwrap();
     let refused = env.reset(Some(4), vec![("no_such_key".into(), OptionValue::Int(3))]).await;
-    assert_eq!(code(refused.clone().map(|_| ())), ErrorCode::InvalidOption);
+    assert_eq!(code(refused.clone().map(|_| ())), ErrorCode::InvalidScenario);
     assert!(format!("{:?}", refused.err()).contains("no_such_key"));
-    let moved = vec![("overrides.vehicle.ec_0.speed".into(), OptionValue::Float(23.0))];
+    let moved = vec![("vehicle.ec_0.speed".into(), OptionValue::Float(23.0))];
     let changed = env.reset(Some(4), moved).await.unwrap();
-    assert_ne!(plain.observations, changed.observations);
+    assert_ne!(plain.agents, changed.agents);
     assert!(env.step(vec![]).await.is_ok(), "the env serves on after a refused reset");
 }
 
@@ -105,8 +104,8 @@ async fn same_seed_same_replies_across_clients_other_seed_differs() {
     let ra = a.reset(Some(21), vec![]).await.unwrap();
     let rb = b.reset(Some(21), vec![]).await.unwrap();
     let rc = c.reset(Some(22), vec![]).await.unwrap();
-    assert_eq!(ra.observations, rb.observations);
-    assert_ne!(ra.observations, rc.observations);
+    assert_eq!(ra.agents, rb.agents);
+    assert_ne!(ra.agents, rc.agents);
     for k in 0..6u32 {
         let (sa, sb) = (a.step(meta("ego_0", k % 5)).await.unwrap(), b.step(meta("ego_0", k % 5)).await.unwrap());
         assert_eq!(format!("{sa:?}"), format!("{sb:?}"), "step {k} differs");
@@ -206,7 +205,7 @@ async fn a_retried_step_returns_the_same_reply_and_steps_once() {
     let next = env.step_with_seq(3, vec![]).await.unwrap();
     twin.step(meta("ego_0", 3)).await.unwrap();
     let twin_next = twin.step(vec![]).await.unwrap();
-    assert_eq!(next.observations, twin_next.observations);
+    assert_eq!(next.steps, twin_next.steps);
     assert_eq!(code(env.step_with_seq(1, vec![]).await), ErrorCode::StaleSequence);
 }
 
@@ -226,7 +225,7 @@ async fn a_batch_steps_many_envs_in_one_round_trip() {
     let mut handles: Vec<_> = envs.iter_mut().collect();
     let replies = client.step_batch(&mut handles, (0..6).map(|_| meta("ego_0", 2)).collect()).await.unwrap();
     assert_eq!(replies.len(), 6);
-    assert_eq!(replies[4].as_ref().unwrap().observations, expected.observations);
+    assert_eq!(replies[4].as_ref().unwrap().steps, expected.steps);
 }
 
 /// Sends raw bytes to the server's request key from a session of its own.
@@ -466,10 +465,10 @@ async fn more_kinds_of_bad_input_each_get_their_code_and_the_env_keeps_working()
     let mut env = create(CreateOptions::default()).await.expect("a good env");
     env.reset(Some(1), vec![]).await.unwrap();
 
-    // 30-31: reset options that do not exist, or change who learns.
-    let unknown_option = vec![("speed".into(), OptionValue::Float(3.0))];
-    assert_eq!(code(env.reset(Some(1), unknown_option).await), ErrorCode::InvalidOption);
-    let bad_override = vec![("overrides.vehicle.ec_0.lane".into(), OptionValue::Int(40))];
+    // 30-31: reset overrides of a key that does not exist, or of a value out of range.
+    let unknown_key = vec![("speed".into(), OptionValue::Float(3.0))];
+    assert_eq!(code(env.reset(Some(1), unknown_key).await), ErrorCode::InvalidScenario);
+    let bad_override = vec![("vehicle.ec_0.lane".into(), OptionValue::Int(40))];
     assert_eq!(code(env.reset(Some(1), bad_override).await), ErrorCode::InvalidScenario);
     env.reset(Some(1), vec![]).await.unwrap();
 

@@ -4,7 +4,7 @@
 
 mod common;
 
-use arena_protocol::{CreateOptions, Observation};
+use arena_protocol::{AgentStart, CreateOptions, Observation, ResetOptions};
 use arena_server::env::Env;
 use arena_sim::scenario::builtin;
 
@@ -25,26 +25,27 @@ async fn sixty_four_clients_stepping_at_once_each_get_their_own_world() {
     for (k, (client, mut env)) in (0..CLIENTS).zip(clients) {
         runs.push(tokio::spawn(async move {
             let first = env.reset(Some(k), vec![]).await.expect("reset");
-            let mut observations = vec![first.observations];
+            let (start, mut observations) = (first.agents, Vec::new());
             let mut seq = first.seq;
             for _ in 0..STEPS {
                 let reply = env.step(vec![]).await.expect("no step fails under load");
                 assert_eq!(reply.seq, seq + 1, "client {k}: replies come in sequence");
                 seq = reply.seq;
-                observations.push(reply.observations);
+                observations.push(reply.steps.into_iter().map(|s| (s.agent, s.observation)).collect::<Vec<_>>());
             }
             env.close().await.expect("close");
             client.close().await.expect("client close");
-            observations
+            (start, observations)
         }));
     }
     let scenario = builtin("merge-random").expect("shipped").expect("loads");
     for (k, run) in runs.into_iter().enumerate() {
-        let remote: Vec<Vec<(String, Observation)>> = run.await.expect("a client task");
+        let (remote_start, remote): (Vec<AgentStart>, Vec<Vec<(String, Observation)>>) =
+            run.await.expect("a client task");
         let mut local = Env::new(scenario.clone(), &CreateOptions::default(), 0).expect("env");
-        let reset = local.reset(Some(k as u64), &[]).expect("reset");
-        let mut expected: Vec<Vec<(String, Observation)>> =
-            vec![reset.into_iter().map(|(agent, observation, _)| (agent, observation)).collect()];
+        let reset = local.reset(Some(k as u64), &ResetOptions::default()).expect("reset");
+        assert_eq!(remote_start, reset, "client {k} started in another world than its own");
+        let mut expected: Vec<Vec<(String, Observation)>> = Vec::new();
         for _ in 0..STEPS {
             let steps = local.step(&[]).expect("step");
             expected.push(steps.into_iter().map(|s| (s.agent, s.observation)).collect());

@@ -11,12 +11,12 @@ use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSo
 use arena_protocol::keys::DEFAULT_PREFIX;
 use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
-    Action, ActionType, BuiltinPolicy, Frame, Game, Info, InfoValue, Observation, ObservationKind, RenderMode, Space,
-    StepReply, Tensor, TensorData,
+    Action, ActionType, BuiltinPolicy, EndReason, Frame, Game, Info, InfoValue, MetaAction, Observation,
+    ObservationKind, RenderMode, Space, StepReply, Tensor, TensorData,
 };
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyTuple};
 
 pyo3::create_exception!(
     _core,
@@ -130,33 +130,9 @@ impl Client {
             .into_iter()
             .map(|(key, value)| option_value(&key, &value).map(|v| (key, v)))
             .collect::<PyResult<Vec<_>>>()?;
-        let action_type = match action_type.as_deref() {
-            None => None,
-            Some("meta") => Some(ActionType::Meta),
-            Some("continuous") => Some(ActionType::Continuous),
-            Some(other) => {
-                return Err(PyValueError::new_err(format!(
-                    "action_type must be 'meta' or 'continuous', not {other:?}"
-                )));
-            }
-        };
-        let observation = match observation.as_deref() {
-            None | Some("kinematics") => None,
-            Some("kinematics_with_mask") => Some(ObservationKind::KinematicsWithMask),
-            Some(other) => {
-                return Err(PyValueError::new_err(format!(
-                    "observation must be 'kinematics' or 'kinematics_with_mask', not {other:?}"
-                )));
-            }
-        };
-        let expert = match expert.as_deref() {
-            None => None,
-            Some("nash") => Some(Game::Nash),
-            Some("stackelberg") => Some(Game::Stackelberg),
-            Some(other) => {
-                return Err(PyValueError::new_err(format!("expert must be 'nash' or 'stackelberg', not {other:?}")));
-            }
-        };
+        let action_type = parsed::<ActionType>("action_type", action_type)?;
+        let observation = parsed::<ObservationKind>("observation", observation)?;
+        let expert = parsed::<Game>("expert", expert)?;
         let policy = policy.map(|name| name.parse::<BuiltinPolicy>()).transpose().map_err(PyValueError::new_err)?;
         let source = match text {
             Some(text) => ScenarioSource::Inline { file_name: scenario, text },
@@ -218,6 +194,15 @@ impl Client {
     }
 }
 
+/// `text` as one of the protocol's named choices; an unknown one is a ValueError naming
+/// the keyword and the valid names.
+fn parsed<T: std::str::FromStr<Err = arena_protocol::UnknownName>>(
+    keyword: &str,
+    text: Option<String>,
+) -> PyResult<Option<T>> {
+    text.map(|text| text.parse::<T>().map_err(|e| PyValueError::new_err(format!("{keyword}: {e}")))).transpose()
+}
+
 fn closed_error() -> PyErr {
     ArenaError::new_err(("EnvClosed".to_string(), "this env was closed; create a new one".to_string()))
 }
@@ -254,8 +239,12 @@ fn parse_actions(actions: &Bound<'_, PyDict>) -> PyResult<Vec<(String, Action)>>
 /// An int (Python or numpy) is a meta action; a sequence of 2 floats a continuous one.
 fn parse_action(agent: &str, action: &Bound<'_, PyAny>) -> PyResult<Action> {
     if let Ok(index) = action.extract::<i64>() {
+        let count = MetaAction::ALL.len();
         return u32::try_from(index).map(Action::Meta).map_err(|_| {
-            PyValueError::new_err(format!("agent '{agent}': action {index} is outside Discrete(5): use 0..=4"))
+            PyValueError::new_err(format!(
+                "agent '{agent}': action {index} is outside Discrete({count}): use 0..={}",
+                count - 1
+            ))
         });
     }
     if let Ok(values) = action.extract::<Vec<f32>>() {
@@ -301,7 +290,6 @@ fn info_dict<'py>(py: Python<'py>, info: &Info) -> PyResult<Bound<'py, PyDict>> 
         match value {
             InfoValue::F64(x) => dict.set_item(key, x)?,
             InfoValue::Bool(x) => dict.set_item(key, x)?,
-            InfoValue::Str(x) => dict.set_item(key, x)?,
             InfoValue::I64(x) => dict.set_item(key, x)?,
             InfoValue::F64s(x) => dict.set_item(key, x.clone())?,
         }
@@ -321,8 +309,6 @@ fn info_from_dict(dict: &Bound<'_, PyDict>) -> PyResult<Info> {
             InfoValue::I64(value.extract()?)
         } else if value.is_instance_of::<PyFloat>() {
             InfoValue::F64(value.extract()?)
-        } else if value.is_instance_of::<PyString>() {
-            InfoValue::Str(value.extract()?)
         } else {
             continue;
         };
@@ -393,13 +379,19 @@ fn pairs<'py, T>(
     Ok(dict)
 }
 
-/// (observations, rewards, terminations, truncations, infos, agents) of a step.
+/// (observations, rewards, terminations, truncations, infos, agents) of a step: the
+/// rows of the reply as PettingZoo's five dicts.
 fn step_tuple(py: Python<'_>, reply: StepReply) -> PyResult<Bound<'_, PyTuple>> {
-    let observations = pairs(py, &reply.observations, |o| observation_value(py, o))?;
-    let rewards = pairs(py, &reply.rewards, |r| Ok(r.into_pyobject(py)?.into_any()))?;
-    let terminations = pairs(py, &reply.terminations, |t| Ok(t.into_pyobject(py)?.to_owned().into_any()))?;
-    let truncations = pairs(py, &reply.truncations, |t| Ok(t.into_pyobject(py)?.to_owned().into_any()))?;
-    let infos = pairs(py, &reply.infos, |i| Ok(info_dict(py, i)?.into_any()))?;
+    let (observations, rewards, terminations, truncations, infos) =
+        (PyDict::new(py), PyDict::new(py), PyDict::new(py), PyDict::new(py), PyDict::new(py));
+    for step in &reply.steps {
+        let agent = step.agent.as_str();
+        observations.set_item(agent, observation_value(py, &step.observation)?)?;
+        rewards.set_item(agent, step.reward)?;
+        terminations.set_item(agent, step.terminated)?;
+        truncations.set_item(agent, step.truncated)?;
+        infos.set_item(agent, info_dict(py, &step.info)?)?;
+    }
     let agents = PyList::new(py, &reply.agents)?;
     PyTuple::new(
         py,
@@ -461,27 +453,28 @@ impl Env {
         Ok(dict)
     }
 
-    /// (observations, infos).
-    #[pyo3(signature = (seed = None, options = None))]
+    /// (observations, infos); `overrides` change the scenario for this episode alone
+    /// (dotted keys, as at creation).
+    #[pyo3(signature = (seed = None, overrides = None))]
     fn reset<'py>(
         &self,
         py: Python<'py>,
         seed: Option<u64>,
-        options: Option<Bound<'py, PyDict>>,
+        overrides: Option<Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
-        // Wire options, flat (`overrides.vehicle.ac.speed`): the Python layer flattens
-        // the documented dict form; the server refuses keys it does not know.
         let mut parsed = Vec::new();
-        if let Some(options) = options {
-            for (key, value) in options.iter() {
-                let key: String = key.extract()?;
-                let value = option_value(&key, &value)?;
-                parsed.push((key, value));
-            }
+        for (key, value) in overrides.iter().flat_map(|overrides| overrides.iter()) {
+            let key: String =
+                key.extract().map_err(|_| PyTypeError::new_err("override keys must be dotted scenario keys (str)"))?;
+            let value = option_value(&key, &value)?;
+            parsed.push((key, value));
         }
         let reply = self.with(py, move |env| env.reset(seed, parsed))?;
-        let observations = pairs(py, &reply.observations, |o| observation_value(py, o))?;
-        let infos = pairs(py, &reply.infos, |i| Ok(info_dict(py, i)?.into_any()))?;
+        let (observations, infos) = (PyDict::new(py), PyDict::new(py));
+        for start in &reply.agents {
+            observations.set_item(&start.agent, observation_value(py, &start.observation)?)?;
+            infos.set_item(&start.agent, info_dict(py, &start.info)?)?;
+        }
         PyTuple::new(py, [observations.into_any(), infos.into_any()])
     }
 
@@ -533,6 +526,13 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_PREFIX", DEFAULT_PREFIX)?;
     m.add("DEFAULT_TIMEOUT", DEFAULT_TIMEOUT)?;
     m.add("DEFAULT_CONNECT_TIMEOUT", DEFAULT_CONNECT_TIMEOUT)?;
+    // The protocol's vocabulary, written once in arena-protocol.
+    m.add("END_REASONS", EndReason::ALL.map(EndReason::name).to_vec())?;
+    m.add("META_ACTIONS", MetaAction::ALL.map(MetaAction::name).to_vec())?;
+    m.add("INFO_KEYS", arena_protocol::info::SCHEMA.map(|(key, _)| key).to_vec())?;
+    m.add("ACTION_TYPES", ActionType::ALL.map(ActionType::name).to_vec())?;
+    m.add("OBSERVATIONS", ObservationKind::ALL.map(ObservationKind::name).to_vec())?;
+    m.add("GAMES", Game::ALL.map(Game::name).to_vec())?;
     m.add_class::<Client>()?;
     m.add_class::<Env>()?;
     m.add_function(wrap_pyfunction!(eval_report, m)?)?;

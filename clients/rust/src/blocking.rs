@@ -112,8 +112,8 @@ impl Env {
     }
 
     /// See `crate::RemoteEnv::reset`.
-    pub fn reset(&mut self, seed: Option<u64>, options: Vec<(String, OptionValue)>) -> Result<ResetReply> {
-        self.client.runtime.block_on(self.env.reset(seed, options))
+    pub fn reset(&mut self, seed: Option<u64>, overrides: Vec<(String, OptionValue)>) -> Result<ResetReply> {
+        self.client.runtime.block_on(self.env.reset(seed, overrides))
     }
 
     /// See `crate::RemoteEnv::step`.

@@ -6,7 +6,8 @@
 
 use std::fmt::Write as _;
 
-use arena_protocol::{Info, InfoValue};
+use arena_protocol::info as key;
+use arena_protocol::{EndReason, Info};
 use serde::Serialize;
 
 /// The figures of an episode, in table order: (key, column heading, what it is).
@@ -47,38 +48,36 @@ pub struct Episode {
 impl Episode {
     /// The episode whose last info is `info`, or what is missing from it.
     pub fn from_info(policy: &str, scenario: &str, seed: u64, agent: &str, info: &Info) -> Result<Episode, String> {
-        let get = |key: &str| info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v);
-        let number = |key: &str| match get(key) {
-            Some(InfoValue::F64(v)) => Ok(*v),
-            Some(InfoValue::I64(v)) => Ok(*v as f64),
-            Some(InfoValue::Bool(v)) => Ok(f64::from(u8::from(*v))),
-            _ => Err(format!("the last info of {agent} has no `{key}`: is the server older than this client?")),
+        let number = |key: &str| {
+            info.number(key).ok_or_else(|| {
+                format!("the last info of {agent} has no `{key}`: is the server older than this client?")
+            })
         };
-        let end_reason = match get("end_reason") {
-            Some(InfoValue::Str(reason)) => reason.clone(),
-            _ => return Err(format!("the last info of {agent} has no `end_reason`")),
-        };
+        if number(key::EPISODE_DONE)? != 1.0 {
+            return Err(format!("the info of {agent} is not its episode's last (`episode_done` is false)"));
+        }
+        let end = info.end_reason().ok_or_else(|| format!("the last info of {agent} has no known `end_reason`"))?;
         let finite = |v: f64| if v.is_finite() { v } else { f64::NAN };
         let figures = vec![
-            number("episode_success")?,
-            f64::from(u8::from(end_reason == "collision")),
-            f64::from(u8::from(matches!(end_reason.as_str(), "off_road" | "lane_end"))),
-            // Present only when a lane change began.
-            number("episode_t_c").unwrap_or(f64::NAN),
-            number("episode_mean_speed")?,
-            finite(number("episode_min_gap")?),
-            finite(number("episode_min_ttc")?),
-            number("episode_rms_safety")?,
-            number("episode_rms_comfort")?,
-            number("episode_rms_efficiency")?,
-            number("episode_return")?,
+            number(key::EPISODE_SUCCESS)?,
+            f64::from(u8::from(end == EndReason::Collision)),
+            f64::from(u8::from(matches!(end, EndReason::OffRoad | EndReason::LaneEnd))),
+            // +inf when no lane change began.
+            finite(number(key::EPISODE_T_C)?),
+            number(key::EPISODE_MEAN_SPEED)?,
+            finite(number(key::EPISODE_MIN_GAP)?),
+            finite(number(key::EPISODE_MIN_TTC)?),
+            number(key::EPISODE_RMS_SAFETY)?,
+            number(key::EPISODE_RMS_COMFORT)?,
+            number(key::EPISODE_RMS_EFFICIENCY)?,
+            number(key::EPISODE_RETURN)?,
         ];
         Ok(Episode {
             policy: policy.to_string(),
             scenario: scenario.to_string(),
             seed,
             agent: agent.to_string(),
-            end_reason,
+            end_reason: end.name().to_string(),
             figures,
         })
     }

@@ -15,7 +15,7 @@
 //! let mut env = client.create_env(&server, ScenarioSource::Named("merge".into()), CreateOptions::default()).await?;
 //! env.reset(Some(0), vec![]).await?;
 //! let reply = env.step(vec![]).await?;
-//! println!("{:?}", reply.rewards);
+//! println!("{:?}", reply.steps[0].reward);
 //! env.close().await?;
 //! client.close().await?;
 //! # Ok(()) }
@@ -31,11 +31,12 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 pub use arena_protocol::{
-    Action, BatchItem, BatchStep, CreateOptions, EnvId, EnvSpecs, ErrorCode, ErrorReply, Frame, Observation,
-    OptionValue, RenderMode, ResetReply, ScenarioSource, ServerInfo, StepReply,
+    Action, AgentStart, AgentStep, BatchItem, BatchStep, CreateOptions, EndReason, EnvId, EnvSpecs, ErrorCode,
+    ErrorReply, Frame, Info, InfoValue, MetaAction, Observation, OptionValue, RenderMode, ResetReply, ScenarioSource,
+    ServerInfo, StepReply,
 };
 use arena_protocol::{
-    ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, decode, encode, keys,
+    ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetOptions, decode, encode, keys,
     session::{ConnectionFlags, Role, login_user},
 };
 use zenoh::query::{ConsolidationMode, QueryTarget};
@@ -499,10 +500,11 @@ impl RemoteEnv {
         &self.specs
     }
 
-    /// Starts an episode.
-    pub async fn reset(&mut self, seed: Option<u64>, options: Vec<(String, OptionValue)>) -> Result<ResetReply> {
+    /// Starts an episode, with `overrides` of the scenario for it alone (dotted keys, as
+    /// at creation).
+    pub async fn reset(&mut self, seed: Option<u64>, overrides: Vec<(String, OptionValue)>) -> Result<ResetReply> {
         self.seq += 1;
-        let body = RequestBody::Reset { env: self.id, seq: self.seq, seed, options };
+        let body = RequestBody::Reset { env: self.id, seq: self.seq, seed, options: ResetOptions { overrides } };
         match self.client.call(&self.server, body, true).await? {
             ReplyBody::Reset(reply) => Ok(reply),
             other => Err(unexpected("Reset", &other)),

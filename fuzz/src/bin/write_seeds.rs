@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use arena_protocol::{
     Action, BatchStep, ClientId, CreateOptions, EnvId, OptionValue, PROTOCOL_VERSION, RenderMode, Request, RequestBody,
-    ScenarioSource, encode,
+    ResetOptions, ScenarioSource, encode,
 };
 
 /// The requests, by file name, and the live env `handle_request` should point each at
@@ -41,7 +41,7 @@ fn requests() -> Vec<(&'static str, u8, Vec<u8>)> {
                 env,
                 seq: 1,
                 seed: Some(4),
-                options: vec![("overrides.vehicle.ac.speed".into(), OptionValue::Float(18.0))],
+                options: ResetOptions { overrides: vec![("vehicle.ac.speed".into(), OptionValue::Float(18.0))] },
             }),
         ),
         ("step", 0, request(RequestBody::Step { env, seq: 1, actions: vec![("ec_0".into(), Action::Meta(3))] })),

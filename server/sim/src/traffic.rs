@@ -198,8 +198,13 @@ fn mobil(params: &IdmParams, scene: &Scene, car: &SceneCar) -> Option<LaneId> {
 /// highway-env's proportional speed controller for learners' meta actions: towards the
 /// target speed, within the acceleration limit.
 pub fn track_speed(params: &IdmParams, car: &SceneCar) -> f64 {
+    speed_control(params, car.target_speed, car.state.vx)
+}
+
+/// The acceleration `track_speed` commands at `speed` for `target_speed`.
+pub fn speed_control(params: &IdmParams, target_speed: f64, speed: f64) -> f64 {
     let limit = params.accel_limit;
-    ((car.target_speed - car.state.vx) / params.speed_time_constant).clamp(-limit, limit)
+    ((target_speed - speed) / params.speed_time_constant).clamp(-limit, limit)
 }
 
 #[cfg(test)]

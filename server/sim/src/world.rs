@@ -290,6 +290,29 @@ impl World {
         }
     }
 
+    /// Vehicle `id`'s stage cost now (eq. 10-14), with the game-theoretic AV's constants
+    /// for it (`gt_params`): the yardstick learners are rewarded and compared by.
+    pub fn stage_cost(&mut self, id: VehicleId) -> gt::CostComponents {
+        let params = self.gt_params(id);
+        gt::stage_cost(self.scene(), id, &params)
+    }
+
+    /// What the game-theoretic AV, playing `game` as a leader with its constants for `id`,
+    /// would decide in `id`'s place now (one period's game, no memory).
+    pub fn expert_decision(&mut self, id: VehicleId, game: gt::Game) -> gt::Decision {
+        let params = self.gt_params(id);
+        gt::expert_decision(self.scene(), id, game, &params)
+    }
+
+    /// The AV's command in `id`'s place now (its acceleration and the preview point its
+    /// MPC plans), with the memory `expert` holds of its earlier periods there, which it
+    /// then updates (its `decision` among them).
+    pub fn expert_command(&mut self, id: VehicleId, expert: &mut GtDriver) -> Command {
+        let step = gt::plan(self.scene(), id, expert, None);
+        *expert = step.driver;
+        step.command
+    }
+
     /// A learner's command for the coming periods.
     pub fn command_agent(&mut self, id: VehicleId, command: AgentCommand) {
         self.vehicle_mut(id).driver = Driver::Agent(command);

@@ -9,15 +9,16 @@
 //! a symmetric unit box): 1 is `CONTINUOUS_ACCEL_SCALE` and one lane width to the left;
 //! the world keeps the speed within [0, limit x `LEARNER_SPEED_FACTOR`].
 
-use arena_protocol::{
-    Action, ActionType, DType, ErrorCode, META_FASTER, META_IDLE, META_LANE_LEFT, META_LANE_RIGHT, META_SLOWER, Space,
-};
+use arena_protocol::{Action, ActionType, DType, ErrorCode, MetaAction, Space};
 
 use arena_sim::dynamics::Command;
 use arena_sim::gt::Decision;
 use arena_sim::road::{LaneChange, LaneId, Road};
-use arena_sim::traffic::IdmParams;
+use arena_sim::traffic::{IdmParams, speed_control};
 use arena_sim::world::{AgentCommand, VehicleId, World};
+
+/// Which meta actions can act now, indexed by `MetaAction::code`.
+pub type MetaMask = [bool; MetaAction::ALL.len()];
 
 /// The rungs of the target-speed ladder of `faster` and `slower` (m/s): 0, 5, 10, ... up
 /// to the lane's limit (which is a rung too). highway-env spaces its target speeds 5 m/s
@@ -31,7 +32,7 @@ pub const CONTINUOUS_ACCEL_SCALE: f64 = 6.0;
 /// The action space of an agent driving with `kind`.
 pub fn space(kind: ActionType) -> Space {
     match kind {
-        ActionType::Meta => Space::Discrete { n: 5, start: 0 },
+        ActionType::Meta => Space::Discrete { n: MetaAction::ALL.len() as u32, start: 0 },
         ActionType::Continuous => {
             Space::Box { low: vec![-1.0; 2], high: vec![1.0; 2], shape: vec![2], dtype: DType::F32 }
         }
@@ -60,47 +61,56 @@ fn rung_below(speed: f64) -> f64 {
     (((speed - 1e-6) / TARGET_SPEED_STEP).ceil() * TARGET_SPEED_STEP - TARGET_SPEED_STEP).max(0.0)
 }
 
-/// Which meta actions make a difference now: indexed by `META_*`. `limit` is the speed
-/// limit of the target lane.
-pub fn meta_mask(road: &Road, target_lane: LaneId, target_speed: f64, s: f64) -> [bool; 5] {
+/// Which meta actions make a difference now for a vehicle at `s` aiming for
+/// `target_speed` in `target_lane` (whose speed limit caps `faster`).
+pub fn meta_mask(road: &Road, target_lane: LaneId, target_speed: f64, s: f64) -> MetaMask {
     let lane = i64::from(target_lane.0);
     let open = |lane: i64| road.has_lane(lane) && road.lane_end(LaneId(lane as u32)) > s;
     let limit = road.speed_limit(target_lane);
-    let mut mask = [false; 5];
-    mask[META_LANE_LEFT as usize] = open(lane - 1);
-    mask[META_IDLE as usize] = true;
-    mask[META_LANE_RIGHT as usize] = open(lane + 1);
-    mask[META_FASTER as usize] = target_speed < limit - 1e-6;
-    mask[META_SLOWER as usize] = target_speed > 1e-6;
-    mask
+    MetaAction::ALL.map(|action| match action {
+        MetaAction::LaneLeft => open(lane - 1),
+        MetaAction::Idle => true,
+        MetaAction::LaneRight => open(lane + 1),
+        MetaAction::Faster => target_speed < limit - 1e-6,
+        MetaAction::Slower => target_speed > 1e-6,
+    })
+}
+
+fn allowed(mask: &MetaMask, action: MetaAction) -> bool {
+    mask[action.code() as usize]
 }
 
 /// The meta action that best reproduces `decision` (the expert's command) for a vehicle
 /// at `speed` aiming for `target_speed` with speed limit `limit`: its lane change if it
 /// makes one and `mask` allows it, else whichever of idle, faster and slower makes the
-/// speed controller's acceleration closest to the decided one (idle on a tie).
-pub fn meta_equivalent(decision: &Decision, mask: [bool; 5], speed: f64, target_speed: f64, limit: f64) -> u32 {
+/// speed controller's acceleration (`idm`'s, as the world runs it) closest to the decided
+/// one (idle on a tie).
+pub fn meta_equivalent(
+    decision: &Decision,
+    mask: MetaMask,
+    idm: &IdmParams,
+    speed: f64,
+    target_speed: f64,
+    limit: f64,
+) -> MetaAction {
     let turn = match decision.lane_change {
-        LaneChange::Left => Some(META_LANE_LEFT),
-        LaneChange::Right => Some(META_LANE_RIGHT),
+        LaneChange::Left => Some(MetaAction::LaneLeft),
+        LaneChange::Right => Some(MetaAction::LaneRight),
         LaneChange::Keep => None,
     };
-    if let Some(turn) = turn.filter(|&turn| mask[turn as usize]) {
+    if let Some(turn) = turn.filter(|&turn| allowed(&mask, turn)) {
         return turn;
     }
-    let idm = IdmParams::default();
-    let controlled =
-        |target: f64| ((target - speed) / idm.speed_time_constant).clamp(-idm.accel_limit, idm.accel_limit);
     let candidates = [
-        (META_IDLE, target_speed),
-        (META_FASTER, rung_above(target_speed, limit)),
-        (META_SLOWER, rung_below(target_speed)),
+        (MetaAction::Idle, target_speed),
+        (MetaAction::Faster, rung_above(target_speed, limit)),
+        (MetaAction::Slower, rung_below(target_speed)),
     ];
     candidates
         .into_iter()
-        .filter(|&(action, _)| mask[action as usize])
-        .map(|(action, target)| (action, (controlled(target) - decision.accel).abs()))
-        .fold((META_IDLE, f64::INFINITY), |best, next| if next.1 < best.1 { next } else { best })
+        .filter(|&(action, _)| allowed(&mask, action))
+        .map(|(action, target)| (action, (speed_control(idm, target, speed) - decision.accel).abs()))
+        .fold((MetaAction::Idle, f64::INFINITY), |best, next| if next.1 < best.1 { next } else { best })
         .0
 }
 
@@ -110,20 +120,25 @@ pub fn apply(world: &mut World, id: VehicleId, action: Option<&Action>, kind: Ac
     match (kind, action) {
         (ActionType::Meta, action) => {
             world.command_agent(id, AgentCommand::Track);
-            let Some(&Action::Meta(choice)) = action else { return true };
+            // `check` has refused codes outside the space.
+            let Some(choice) = action.and_then(|action| match action {
+                Action::Meta(code) => MetaAction::from_code(*code),
+                Action::Continuous(_) => None,
+            }) else {
+                return true;
+            };
             let vehicle = world.vehicle(id);
             let (lane, target) = (vehicle.target_lane, vehicle.target_speed);
-            let mask = meta_mask(world.road(), lane, target, vehicle.state.s);
-            if !mask[choice as usize] {
-                return choice == META_IDLE;
+            if !allowed(&meta_mask(world.road(), lane, target, vehicle.state.s), choice) {
+                return choice == MetaAction::Idle;
             }
             let limit = world.road().speed_limit(lane);
             match choice {
-                META_LANE_LEFT => world.change_lane(id, LaneId(lane.0 - 1)),
-                META_LANE_RIGHT => world.change_lane(id, LaneId(lane.0 + 1)),
-                META_FASTER => world.set_target_speed(id, rung_above(target, limit)),
-                META_SLOWER => world.set_target_speed(id, rung_below(target)),
-                _ => {}
+                MetaAction::LaneLeft => world.change_lane(id, LaneId(lane.0 - 1)),
+                MetaAction::LaneRight => world.change_lane(id, LaneId(lane.0 + 1)),
+                MetaAction::Faster => world.set_target_speed(id, rung_above(target, limit)),
+                MetaAction::Slower => world.set_target_speed(id, rung_below(target)),
+                MetaAction::Idle => {}
             }
             true
         }
@@ -160,18 +175,21 @@ mod tests {
 
     #[test]
     fn the_meta_expert_is_the_action_whose_speed_control_comes_closest() {
+        use MetaAction::{Faster, Idle, LaneLeft, Slower};
         let decision = |accel, lane_change| Decision { accel, lane_change, ..Decision::default() };
         let all = [true; 5];
+        let idm = IdmParams::default();
+        let expert = |d: Decision, mask, target| meta_equivalent(&d, mask, &idm, 20.0, target, 25.0);
         // At 20 m/s aiming for 20: idle gives 0, faster +6 (clamped), slower -6.
-        assert_eq!(meta_equivalent(&decision(-0.5, LaneChange::Keep), all, 20.0, 20.0, 25.0), META_IDLE);
-        assert_eq!(meta_equivalent(&decision(-4.0, LaneChange::Keep), all, 20.0, 20.0, 25.0), META_SLOWER);
-        assert_eq!(meta_equivalent(&decision(5.0, LaneChange::Keep), all, 20.0, 20.0, 25.0), META_FASTER);
+        assert_eq!(expert(decision(-0.5, LaneChange::Keep), all, 20.0), Idle);
+        assert_eq!(expert(decision(-4.0, LaneChange::Keep), all, 20.0), Slower);
+        assert_eq!(expert(decision(5.0, LaneChange::Keep), all, 20.0), Faster);
         // Aiming for 25 at 20 the controller would push +6; for +2, slowing the target to
         // 20 (controller: 0) comes closer.
-        assert_eq!(meta_equivalent(&decision(2.0, LaneChange::Keep), all, 20.0, 25.0, 25.0), META_SLOWER);
-        assert_eq!(meta_equivalent(&decision(0.0, LaneChange::Left), all, 20.0, 20.0, 25.0), META_LANE_LEFT);
+        assert_eq!(expert(decision(2.0, LaneChange::Keep), all, 25.0), Slower);
+        assert_eq!(expert(decision(0.0, LaneChange::Left), all, 20.0), LaneLeft);
         // A lane change the mask forbids falls back to the speed.
         let no_left = [false, true, true, true, true];
-        assert_eq!(meta_equivalent(&decision(5.0, LaneChange::Left), no_left, 20.0, 20.0, 25.0), META_FASTER);
+        assert_eq!(expert(decision(5.0, LaneChange::Left), no_left, 20.0), Faster);
     }
 }

@@ -1,17 +1,58 @@
-//! What one agent's episode came to, summed up as it runs and reported in the info of its
+//! The terminate phase of a step and what one agent's episode came to: why it ended
+//! (`EndReason`), and its figures, summed up as it runs and reported in the info of its
 //! last step (`episode_*` keys, docs/evaluation.md): the figures `arena eval` tables, so
 //! a policy driven in the server and one driven through a client are measured by the
 //! same code. The cost RMS is the paper's (Tables V and VII, as `arena paper` computes
 //! it): over every control period, of the stage cost sampled at the period's end.
 
-use arena_protocol::InfoValue;
+use arena_protocol::EndReason;
 
 use arena_sim::gt::CostComponents;
 use arena_sim::road::LaneId;
 use arena_sim::scenario::Goal;
 use arena_sim::world::{Status, VehicleId, World};
 
-use super::reward::StepCost;
+use super::simulate::StepCost;
+
+/// Why vehicle `id`'s episode ended, if it did: a collision, driving past the end of its
+/// lane, over the road's edge, or reaching the end of the road.
+pub fn ended(world: &World, id: VehicleId) -> Option<EndReason> {
+    let vehicle = world.vehicle(id);
+    match vehicle.status {
+        Status::Driving => None,
+        Status::Crashed => Some(EndReason::Collision),
+        Status::Exited => Some(EndReason::RoadEnd),
+        Status::OffRoad => {
+            let road = world.road();
+            let lane = road.nearest_lane(vehicle.state.d);
+            let within = (vehicle.state.d - road.lane_center(lane)).abs() <= road.lane_width() / 2.0;
+            Some(if within && vehicle.state.s > road.lane_end(lane) { EndReason::LaneEnd } else { EndReason::OffRoad })
+        }
+    }
+}
+
+/// An episode's figures, as its last info reports them; all zero before (`done` false).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Figures {
+    /// Whether these are an ended episode's.
+    pub done: bool,
+    /// The scenario's goal was reached.
+    pub success: bool,
+    /// Sum of rewards.
+    pub total_reward: f64,
+    /// Steps.
+    pub length: u32,
+    /// Mean speed along the lane (m/s).
+    pub mean_speed: f64,
+    /// Smallest gap to a car that mattered (m); +inf if none did.
+    pub min_gap: f64,
+    /// Smallest time to collision (s); +inf if no gap closed.
+    pub min_ttc: f64,
+    /// RMS of each cost component over the control periods.
+    pub rms: CostComponents,
+    /// When the first lane change crossing half a lane began (s); +inf if none did.
+    pub t_c: f64,
+}
 
 /// The running figures of one agent's episode.
 #[derive(Debug, Clone, PartialEq)]
@@ -80,35 +121,32 @@ impl EpisodeStats {
         }
     }
 
-    /// The `episode_*` infos of the last step, which ended for `end_reason`.
-    pub fn finish(&self, world: &World, id: VehicleId, goal: &Goal, end_reason: &str) -> Vec<(String, InfoValue)> {
+    /// The figures of the episode, which ended for `end`.
+    pub fn finish(&self, world: &World, id: VehicleId, goal: &Goal, end: EndReason) -> Figures {
         let n = f64::from(self.cost_samples.max(1));
         let rms = |square: f64| (square / n).sqrt();
-        let figures = [
-            ("episode_success", InfoValue::Bool(succeeded(world, id, goal, end_reason))),
-            ("episode_return", InfoValue::F64(self.total_reward)),
-            ("episode_length", InfoValue::I64(i64::from(self.steps))),
-            ("episode_mean_speed", InfoValue::F64(self.speed_sum / f64::from(self.steps.max(1)))),
-            ("episode_min_gap", InfoValue::F64(self.min_gap)),
-            ("episode_min_ttc", InfoValue::F64(self.min_ttc)),
-            ("episode_rms_safety", InfoValue::F64(rms(self.cost_squares.safety))),
-            ("episode_rms_comfort", InfoValue::F64(rms(self.cost_squares.comfort))),
-            ("episode_rms_efficiency", InfoValue::F64(rms(self.cost_squares.efficiency))),
-        ];
-        let mut values: Vec<(String, InfoValue)> =
-            figures.into_iter().map(|(key, value)| (key.to_string(), value)).collect();
-        // Only when there was a lane change: a NaN would make equal infos compare unequal.
-        if let Some(t_c) = self.t_c {
-            values.push(("episode_t_c".to_string(), InfoValue::F64(t_c)));
+        Figures {
+            done: true,
+            success: succeeded(world, id, goal, end),
+            total_reward: self.total_reward,
+            length: self.steps,
+            mean_speed: self.speed_sum / f64::from(self.steps.max(1)),
+            min_gap: self.min_gap,
+            min_ttc: self.min_ttc,
+            rms: CostComponents {
+                safety: rms(self.cost_squares.safety),
+                comfort: rms(self.cost_squares.comfort),
+                efficiency: rms(self.cost_squares.efficiency),
+            },
+            t_c: self.t_c.unwrap_or(f64::INFINITY),
         }
-        values
     }
 }
 
 /// Whether the episode reached the scenario's goal: it ended on the road (time limit or
 /// the road's end), in a goal lane, ahead of every car it had to pass.
-fn succeeded(world: &World, id: VehicleId, goal: &Goal, end_reason: &str) -> bool {
-    if !matches!(end_reason, "time_limit" | "road_end") {
+fn succeeded(world: &World, id: VehicleId, goal: &Goal, end: EndReason) -> bool {
+    if !matches!(end, EndReason::TimeLimit | EndReason::RoadEnd) {
         return false;
     }
     let vehicle = world.vehicle(id);

@@ -1,52 +1,38 @@
 //! The multi-agent episode on top of a world, with PettingZoo Parallel semantics:
 //! `possible_agents` are the scenario's learner-driven vehicles; `reset` builds a fresh
 //! world from a seed; `step` applies every live agent's action, advances the world by
-//! one env step, and reports observations, rewards, terminations, truncations and infos
-//! for every agent that was live before it. Agents that finish leave at once and never
-//! return. Nothing here reads a clock: the same seed and actions give the same bits.
+//! one env step, and reports each agent that was live before it. Agents that finish leave
+//! at once and never return. Nothing here reads a clock: the same seed and actions give
+//! the same bits.
+//!
+//! A step runs in phases, as highway-env's `AbstractEnv.step` does, each in its own
+//! module: check and apply the actions (`action`), simulate (`simulate`: the world's
+//! ticks and the costs sampled on the way), then per agent observe (`observation`),
+//! reward (`reward`), terminate (`episode`) and info (`info`).
 
 mod action;
 mod episode;
+mod info;
 mod observation;
+mod overrides;
 mod render;
 mod reward;
+mod simulate;
 
-use arena_protocol::InfoValue;
 use arena_protocol::{
-    Action, ActionType, BuiltinPolicy, CreateOptions, EnvSpecs, ErrorCode, ErrorReply, Frame, Info, Observation,
-    ObservationKind, OptionValue, RenderMode,
+    Action, ActionType, AgentStart, AgentStep, BuiltinPolicy, CreateOptions, EndReason, EnvSpecs, ErrorCode,
+    ErrorReply, Frame, Observation, ObservationKind, RenderMode, ResetOptions,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use arena_sim::dynamics::Style;
-use arena_sim::gt::{Game, GtDriver, expert_decision, plan};
+use arena_sim::gt::{Game, GtDriver};
 use arena_sim::scenario::{ActionKind, DriverSpec, Scenario};
 use arena_sim::scene::Role;
-use arena_sim::world::{Driver, Status, VehicleId, World};
+use arena_sim::world::{Status, VehicleId, World};
 
 pub use observation::{KINEMATICS_FEATURES, KINEMATICS_VEHICLES};
-
-/// One agent's results of a step, in the order of the agents that were live before it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct AgentStep {
-    /// The agent's name.
-    pub agent: String,
-    /// What it observes after the step.
-    pub observation: Observation,
-    /// Minus the paper's cost J (eq. 9) over the step, minus the collision penalty on
-    /// the step the agent crashes or leaves the road.
-    pub reward: f64,
-    /// Crashed, left the road or reached its end.
-    pub terminated: bool,
-    /// The episode reached `max_cycles`.
-    pub truncated: bool,
-    /// Cost components and vehicle facts.
-    pub info: Info,
-}
-
-/// The result of `reset`: per possible agent, its first observation and info.
-pub type ResetOutcome = Vec<(String, Observation, Info)>;
 
 /// A learner's vehicle.
 #[derive(Debug, Clone)]
@@ -96,7 +82,9 @@ struct StepScratch {
     live_before: Vec<usize>,
     driving_before: Vec<bool>,
     vehicles: Vec<VehicleId>,
-    costs: Vec<reward::StepCost>,
+    costs: Vec<simulate::StepCost>,
+    /// Simulated time when the step began.
+    started: f64,
 }
 
 /// The largest RGB frame (bytes) a render reply carries: the message limit less room for
@@ -108,8 +96,8 @@ fn error(code: ErrorCode, message: impl Into<String>) -> ErrorReply {
 }
 
 impl Env {
-    /// An env over `scenario`, not yet reset. `entropy` seeds the seeds of resets that do
-    /// not give one (the server passes the env id).
+    /// An env over `scenario`, not yet reset (`options.overrides` are `from_text`'s).
+    /// `entropy` seeds the seeds of resets that do not give one.
     pub fn new(scenario: Scenario, options: &CreateOptions, entropy: u64) -> Result<Env, ErrorReply> {
         if scenario.agents().next().is_none() {
             return Err(error(
@@ -176,6 +164,14 @@ impl Env {
         })
     }
 
+    /// An env over the scenario file `text` (named `file` in errors) with the options'
+    /// overrides applied, as a create asks for it.
+    pub fn from_text(file: &str, text: &str, options: &CreateOptions, entropy: u64) -> Result<Env, ErrorReply> {
+        let scenario = Scenario::parse(file, text, &overrides::converted(&options.overrides))
+            .map_err(|e| error(ErrorCode::InvalidScenario, e.to_string()))?;
+        Env::new(scenario, options, entropy)
+    }
+
     /// The world, once reset.
     #[cfg(test)]
     pub(crate) fn world(&self) -> Option<&World> {
@@ -203,10 +199,10 @@ impl Env {
     }
 
     /// Starts an episode: draws its scenario (the `[vary]` values, then the options'
-    /// `overrides.<dotted key>` values), builds its world from the seed. Any other option
-    /// is refused, naming it, and the env stays as it was.
-    pub fn reset(&mut self, seed: Option<u64>, options: &[(String, OptionValue)]) -> Result<ResetOutcome, ErrorReply> {
-        let overrides = episode_overrides(options)?;
+    /// overrides), builds its world from the seed. A bad override is refused, naming it,
+    /// and the env stays as it was.
+    pub fn reset(&mut self, seed: Option<u64>, options: &ResetOptions) -> Result<Vec<AgentStart>, ErrorReply> {
+        let overrides = overrides::converted(&options.overrides);
         let mut seeds = match seed {
             Some(seed) => ChaCha8Rng::seed_from_u64(seed),
             None => self.seeds.clone(),
@@ -242,42 +238,42 @@ impl Env {
             agent.stats = Some(episode::EpisodeStats::start(&world, agent.vehicle));
             agent.aim = world.vehicle(agent.vehicle).target_speed;
         }
-        let outcome = self
-            .agents
-            .iter_mut()
-            .map(|agent| {
-                let observation = observation::observe(self.observation, world.scene(), agent.vehicle, agent.action);
-                let mut info = reward::info(&world, agent.vehicle, None);
-                add_expert(&mut info, &mut world, agent);
-                if self.diagnostics {
-                    add_diagnostics(&mut info, &world);
-                }
-                (agent.name.clone(), observation, info)
+        let starts = (0..self.agents.len())
+            .map(|i| {
+                let (vehicle, action) = (self.agents[i].vehicle, self.agents[i].action);
+                let observation = observation::observe(self.observation, world.scene(), vehicle, action);
+                let info = self.info(&mut world, i, &info::Outcome::start());
+                AgentStart { agent: self.agents[i].name.clone(), observation, info }
             })
             .collect();
         self.world = Some(world);
-        Ok(outcome)
+        Ok(starts)
     }
 
-    /// One env step. Every action is checked before any is applied, so a refused step
-    /// leaves the env as it was.
+    /// One env step, in phases: actions are checked (all before any is applied, so a
+    /// refused step leaves the env as it was) and applied, the world simulated, and each
+    /// agent live before the step observed, rewarded, terminated and told its info.
     pub fn step(&mut self, actions: &[(String, Action)]) -> Result<Vec<AgentStep>, ErrorReply> {
-        let Some(world) = self.world.as_mut() else {
+        self.check_actions(actions)?;
+        self.apply_actions();
+        self.simulate();
+        let mut world = self.world.take().expect("checked: reset before step");
+        let steps = (0..self.scratch.live_before.len()).map(|k| self.agent_step(&mut world, k)).collect();
+        self.world = Some(world);
+        Ok(steps)
+    }
+
+    /// Checks `actions` and keeps each live agent's in `scratch.chosen`. An action for an
+    /// agent that has finished is ignored, as PettingZoo's own conversions do; an unknown
+    /// agent, an action outside its space or two for one agent refuse the step.
+    fn check_actions(&mut self, actions: &[(String, Action)]) -> Result<(), ErrorReply> {
+        if self.world.is_none() {
             return Err(error(ErrorCode::NotReset, "step before reset: call reset first"));
-        };
+        }
         if !self.agents.iter().any(|a| a.live) {
             return Err(error(ErrorCode::AgentNotLive, "every agent has finished this episode: call reset"));
         }
-        if let (Some(policy), Some((name, _))) = (self.policy, actions.first()) {
-            return Err(error(
-                ErrorCode::InvalidAction,
-                format!(
-                    "agent '{name}' is driven by the server's built-in policy {policy} (the env's `policy` \
-                     option): send steps without actions"
-                ),
-            ));
-        }
-        let StepScratch { chosen, applied, live_before, driving_before, vehicles, costs } = &mut self.scratch;
+        let chosen = &mut self.scratch.chosen;
         chosen.clear();
         chosen.resize(self.agents.len(), None);
         for (name, action) in actions {
@@ -290,7 +286,16 @@ impl Env {
             };
             let agent = &self.agents[index];
             if !agent.live {
-                return Err(error(ErrorCode::AgentNotLive, format!("agent '{name}' has finished this episode")));
+                continue;
+            }
+            if let Some(policy) = self.policy {
+                return Err(error(
+                    ErrorCode::InvalidAction,
+                    format!(
+                        "agent '{name}' is driven by the server's built-in policy {policy} (the env's `policy` \
+                         option): send steps without actions"
+                    ),
+                ));
             }
             action::check(action, agent.action)
                 .map_err(|(code, message)| error(code, format!("agent '{name}': {message}")))?;
@@ -298,6 +303,14 @@ impl Env {
                 return Err(error(ErrorCode::InvalidAction, format!("agent '{name}' has two actions in one step")));
             }
         }
+        Ok(())
+    }
+
+    /// Writes each live agent's action (none: the default) into its vehicle's command,
+    /// and notes who was live and driving before the step.
+    fn apply_actions(&mut self) {
+        let Some(world) = self.world.as_mut() else { return };
+        let StepScratch { chosen, applied, live_before, driving_before, vehicles, .. } = &mut self.scratch;
         applied.clear();
         applied.resize(self.agents.len(), true);
         for ((agent, action), applied) in self.agents.iter().zip(chosen.iter()).zip(applied.iter_mut()) {
@@ -312,44 +325,62 @@ impl Env {
             .extend(live_before.iter().map(|&i| world.vehicle(self.agents[i].vehicle).status == Status::Driving));
         vehicles.clear();
         vehicles.extend(live_before.iter().map(|&i| self.agents[i].vehicle));
-        let started = world.time();
-        reward::advance(world, vehicles, self.episode.step_dt, costs);
+    }
+
+    /// Advances the world by one env step, sampling the live agents' costs.
+    fn simulate(&mut self) {
+        let Some(world) = self.world.as_mut() else { return };
+        let StepScratch { vehicles, costs, started, .. } = &mut self.scratch;
+        *started = world.time();
+        simulate::advance(world, vehicles, self.episode.step_dt, costs);
         self.cycles += 1;
+    }
+
+    /// The `k`-th agent live before the step: observed, rewarded, terminated, its info.
+    fn agent_step(&mut self, world: &mut World, k: usize) -> AgentStep {
+        let i = self.scratch.live_before[k];
+        let cost = self.scratch.costs[k];
         let truncated = self.cycles >= self.max_cycles;
-        let mut results = Vec::with_capacity(live_before.len());
-        for (k, &i) in live_before.iter().enumerate() {
-            let agent = &mut self.agents[i];
-            let vehicle = world.vehicle(agent.vehicle);
-            let crashed_now = driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
-            let terminated = vehicle.status != Status::Driving;
-            let reward = reward::reward(&self.episode.reward, self.max_cycles, &costs[k], agent.aim, crashed_now);
-            let mut info = reward::info(world, agent.vehicle, Some(&costs[k]));
-            info.values.push(("action_applied".to_string(), InfoValue::Bool(applied[i])));
-            let stats = agent.stats.get_or_insert_with(|| episode::EpisodeStats::start(world, agent.vehicle));
-            stats.record(world, agent.vehicle, started, reward, &costs[k]);
-            if terminated || truncated {
-                let reason = if terminated { reward::end_reason(world, agent.vehicle) } else { "time_limit" };
-                info.values.push(("end_reason".to_string(), InfoValue::Str(reason.to_string())));
-                info.values.extend(stats.finish(world, agent.vehicle, &self.episode.goal, reason));
-            } else {
-                add_expert(&mut info, world, agent);
-            }
-            if self.diagnostics {
-                add_diagnostics(&mut info, world);
-            }
-            results.push(AgentStep {
-                agent: agent.name.clone(),
-                observation: observation::observe(self.observation, world.scene(), agent.vehicle, agent.action),
-                reward,
-                terminated,
-                truncated: truncated && !terminated,
-                info,
-            });
+        let agent = &mut self.agents[i];
+        let vehicle = world.vehicle(agent.vehicle);
+        let crashed_now = self.scratch.driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
+        let ended = episode::ended(world, agent.vehicle);
+        let reward = reward::reward(&self.episode.reward, self.max_cycles, &cost, agent.aim, crashed_now);
+        let stats = agent.stats.get_or_insert_with(|| episode::EpisodeStats::start(world, agent.vehicle));
+        stats.record(world, agent.vehicle, self.scratch.started, reward, &cost);
+        let end = ended.unwrap_or(if truncated { EndReason::TimeLimit } else { EndReason::Running });
+        let figures = match end {
+            EndReason::Running => episode::Figures::default(),
+            end => stats.finish(world, agent.vehicle, &self.episode.goal, end),
+        };
+        agent.live = end == EndReason::Running;
+        let observation = observation::observe(self.observation, world.scene(), agent.vehicle, agent.action);
+        let outcome = info::Outcome { cost: Some(&cost), applied: self.scratch.applied[i], end, figures };
+        let info = self.info(world, i, &outcome);
+        let agent = &self.agents[i];
+        AgentStep {
+            agent: agent.name.clone(),
+            observation,
+            reward,
+            terminated: ended.is_some(),
+            truncated: truncated && ended.is_none(),
+            info,
         }
-        for (k, &i) in live_before.iter().enumerate() {
-            self.agents[i].live = !(results[k].terminated || results[k].truncated);
+    }
+
+    /// Agent `i`'s info: the schema's keys, then those the env's options turn on.
+    fn info(&mut self, world: &mut World, i: usize, outcome: &info::Outcome) -> arena_protocol::Info {
+        let agent = &mut self.agents[i];
+        let mut info = info::info(world, agent.vehicle, outcome);
+        if let Some(memory) = agent.expert.as_mut() {
+            let running = outcome.end == EndReason::Running;
+            let expert = running.then(|| info::expert(world, agent.vehicle, agent.action, memory));
+            info::add_expert(&mut info, agent.action, expert);
         }
-        Ok(results)
+        if self.diagnostics {
+            info::add_diagnostics(&mut info, world);
+        }
+        info
     }
 
     /// The global view: every vehicle's kinematics, in a fixed order.
@@ -371,30 +402,19 @@ impl Env {
     }
 }
 
-/// On request, every game-theoretic car's solver counts since the episode began, keyed
-/// `gt.<car>.<count>`, cars in the world's order (named ones by name, then traffic). No timings: infos are bit-reproducible, so
-/// decision times live in the benchmarks (docs/performance.md).
-fn add_diagnostics(info: &mut Info, world: &World) {
-    for vehicle in world.vehicles() {
-        let Driver::Gt(gt) = &vehicle.driver else { continue };
-        let d = &gt.diagnostics;
-        let counts = [
-            ("plans", i64::from(d.plans)),
-            ("qp_iterations", i64::from(d.iterations)),
-            ("qp_iterations_total", i64::try_from(d.iterations_total).unwrap_or(i64::MAX)),
-            ("fallbacks", i64::from(d.fallbacks)),
-            ("inexact", i64::from(d.inexact)),
-        ];
-        for (count, value) in counts {
-            info.values.push((format!("gt.{}.{count}", vehicle.name), InfoValue::I64(value)));
-        }
-    }
-}
-
+/// The protocol's words for the model's own types, mapped once.
 fn game(game: arena_protocol::Game) -> Game {
     match game {
         arena_protocol::Game::Nash => Game::Nash,
         arena_protocol::Game::Stackelberg => Game::Stackelberg,
+    }
+}
+
+fn style(style: arena_protocol::Style) -> Style {
+    match style {
+        arena_protocol::Style::Aggressive => Style::Aggressive,
+        arena_protocol::Style::Normal => Style::Normal,
+        arena_protocol::Style::Conservative => Style::Conservative,
     }
 }
 
@@ -403,14 +423,8 @@ fn game(game: arena_protocol::Game) -> Game {
 fn drive_learners(episode: &mut Scenario, policy: BuiltinPolicy) {
     for vehicle in episode.vehicles.iter_mut().filter(|v| matches!(v.driver, DriverSpec::Agent(_))) {
         vehicle.driver = match policy {
-            BuiltinPolicy::Gt { style, game: g } => {
-                if let Some(style) = style {
-                    vehicle.style = match style {
-                        arena_protocol::Style::Aggressive => Style::Aggressive,
-                        arena_protocol::Style::Normal => Style::Normal,
-                        arena_protocol::Style::Conservative => Style::Conservative,
-                    };
-                }
+            BuiltinPolicy::Gt { style: chosen, game: g } => {
+                vehicle.style = chosen.map_or(vehicle.style, style);
                 DriverSpec::Gt { game: game(g), role: Role::Leader, params: Default::default() }
             }
             BuiltinPolicy::Idm => DriverSpec::Idm,
@@ -418,65 +432,5 @@ fn drive_learners(episode: &mut Scenario, policy: BuiltinPolicy) {
     }
 }
 
-/// On request, what the built-in AV would do in the agent's place: `expert_action` in
-/// the agent's own action space, and the game's `expert_accel` and `expert_sigma`. For a
-/// continuous agent the action is the AV's whole command (its acceleration and the
-/// preview point its MPC plans, relative to the current lane), planned with the memory
-/// the AV would have had in this place, so replaying it drives as the AV drives; for a
-/// meta agent it is the meta action that best reproduces the AV's decision.
-fn add_expert(info: &mut Info, world: &mut World, agent: &mut AgentSlot) {
-    let Some(memory) = agent.expert.as_mut() else { return };
-    let id = agent.vehicle;
-    let (decision, action) = match agent.action {
-        ActionType::Meta => {
-            let decision = expert_decision(world.scene(), id, memory.game, &memory.params);
-            let vehicle = world.vehicle(id);
-            let (lane, target, s) = (vehicle.target_lane, vehicle.target_speed, vehicle.state.s);
-            let mask = action::meta_mask(world.road(), lane, target, s);
-            let limit = world.road().speed_limit(lane);
-            let meta = action::meta_equivalent(&decision, mask, vehicle.state.vx, target, limit);
-            (decision, InfoValue::I64(i64::from(meta)))
-        }
-        ActionType::Continuous => {
-            let step = plan(world.scene(), id, memory, None);
-            let road = world.road();
-            let centre = road.lane_center(world.current_lane(id));
-            let accel = (step.command.accel / action::CONTINUOUS_ACCEL_SCALE).clamp(-1.0, 1.0);
-            let offset = ((step.command.preview - centre) / road.lane_width()).clamp(-1.0, 1.0);
-            let decision = step.driver.decision;
-            **memory = step.driver;
-            (decision, InfoValue::F64s(vec![accel, offset]))
-        }
-    };
-    info.values.push(("expert_action".to_string(), action));
-    info.values.push(("expert_accel".to_string(), InfoValue::F64(decision.accel)));
-    info.values.push(("expert_sigma".to_string(), InfoValue::I64(i64::from(decision.lane_change.sigma()))));
-}
-
 #[cfg(test)]
 mod tests;
-
-/// The scenario overrides of a reset's options: every key must be `overrides.<dotted
-/// key>` (`overrides.vehicle.ac.speed`); any other is refused with its name.
-fn episode_overrides(options: &[(String, OptionValue)]) -> Result<Vec<(String, toml::Value)>, ErrorReply> {
-    let mut overrides = Vec::with_capacity(options.len());
-    for (key, value) in options {
-        let Some(path) = key.strip_prefix("overrides.").filter(|path| !path.is_empty()) else {
-            return Err(error(
-                ErrorCode::InvalidOption,
-                format!(
-                    "unknown reset option '{key}': the reset options are overrides.<dotted scenario key> \
-                     (e.g. overrides.vehicle.ac.speed)"
-                ),
-            ));
-        };
-        let value = match value {
-            OptionValue::Bool(b) => toml::Value::Boolean(*b),
-            OptionValue::Int(i) => toml::Value::Integer(*i),
-            OptionValue::Float(f) => toml::Value::Float(*f),
-            OptionValue::Str(s) => toml::Value::String(s.clone()),
-        };
-        overrides.push((path.to_string(), value));
-    }
-    Ok(overrides)
-}

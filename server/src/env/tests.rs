@@ -1,20 +1,32 @@
 use super::*;
-use arena_protocol::InfoValue;
+use arena_protocol::{Info, InfoValue, MetaAction, OptionValue};
 use arena_sim::scenario::builtin;
 
+const NO_OPTIONS: &ResetOptions = &ResetOptions { overrides: Vec::new() };
+
+/// Reset options overriding `pairs` (dotted keys).
+fn overriding(pairs: &[(&str, OptionValue)]) -> ResetOptions {
+    ResetOptions { overrides: pairs.iter().map(|(key, value)| (key.to_string(), value.clone())).collect() }
+}
+
 fn env(name: &str, options: CreateOptions) -> Env {
-    Env::new(builtin(name).unwrap().unwrap(), &options, 1).unwrap()
+    let (_, file, text) = arena_sim::scenario::BUILTIN.into_iter().find(|(n, ..)| *n == name).unwrap();
+    Env::from_text(file, text, &options, 1).unwrap()
 }
 
 fn meta(agent: &str, choice: u32) -> Vec<(String, Action)> {
     vec![(agent.to_string(), Action::Meta(choice))]
 }
 
+fn meta_of(agent: &str, action: MetaAction) -> Vec<(String, Action)> {
+    meta(agent, action.code())
+}
+
 #[test]
 fn step_before_reset_is_refused_and_reset_makes_every_agent_live() {
     let mut env = env("merge", CreateOptions::default());
     assert_eq!(env.step(&[]).unwrap_err().code, ErrorCode::NotReset);
-    let outcome = env.reset(Some(3), &[]).unwrap();
+    let outcome = env.reset(Some(3), NO_OPTIONS).unwrap();
     assert_eq!(outcome.len(), 1);
     assert_eq!(env.live_agents(), ["ec_0"]);
 }
@@ -26,8 +38,8 @@ fn observations_lie_inside_their_space() {
             let mut env = env(name, CreateOptions { observation: Some(kind), ..CreateOptions::default() });
             let specs = env.specs();
             let space = &specs.observation_spaces[0].1;
-            let reset = env.reset(Some(1), &[]).unwrap();
-            assert!(space.contains(&reset[0].1), "{name}: reset observation outside {space:?}");
+            let reset = env.reset(Some(1), NO_OPTIONS).unwrap();
+            assert!(space.contains(&reset[0].observation), "{name}: reset observation outside {space:?}");
             for _ in 0..5 {
                 let steps = env.step(&[]).unwrap();
                 assert!(space.contains(&steps[0].observation), "{name}: {:?}", steps[0].observation);
@@ -44,7 +56,7 @@ fn a_crashed_agent_leaves_at_once_and_never_returns() {
     // it into the lane end... it stops instead (meta keeps speed). Drive it right, off
     // the road edge, which ends its episode.
     let mut env = env("merge", CreateOptions::default());
-    env.reset(Some(0), &[]).unwrap();
+    env.reset(Some(0), NO_OPTIONS).unwrap();
     let mut finished_at = None;
     for k in 0..200 {
         let steps = env.step(&meta("ec_0", 0)).unwrap(); // left into ac's lane: a crash or a merge
@@ -64,7 +76,7 @@ fn a_crashed_agent_leaves_at_once_and_never_returns() {
 fn missing_action_keeps_lane_and_speed() {
     let mut a = env("highway", CreateOptions::default());
     let mut b = env("highway", CreateOptions::default());
-    assert_eq!(a.reset(Some(5), &[]).unwrap(), b.reset(Some(5), &[]).unwrap());
+    assert_eq!(a.reset(Some(5), NO_OPTIONS).unwrap(), b.reset(Some(5), NO_OPTIONS).unwrap());
     for _ in 0..3 {
         assert_eq!(a.step(&[]).unwrap(), b.step(&meta("ego_0", 1)).unwrap());
     }
@@ -73,7 +85,7 @@ fn missing_action_keeps_lane_and_speed() {
 #[test]
 fn truncation_at_exactly_max_cycles() {
     let mut env = env("highway", CreateOptions { max_cycles: Some(3), ..CreateOptions::default() });
-    env.reset(Some(2), &[]).unwrap();
+    env.reset(Some(2), NO_OPTIONS).unwrap();
     assert!(!env.step(&[]).unwrap()[0].truncated);
     assert!(!env.step(&[]).unwrap()[0].truncated);
     let last = env.step(&[]).unwrap();
@@ -82,29 +94,46 @@ fn truncation_at_exactly_max_cycles() {
 }
 
 #[test]
-fn unknown_reset_options_are_refused_by_name_and_overrides_apply_to_the_episode() {
+fn bad_reset_overrides_are_refused_by_name_and_overrides_apply_to_the_episode() {
     let mut env = env("merge", CreateOptions::default());
-    let first = env.reset(Some(9), &[]).unwrap();
-    let odd = [("no_such_option".to_string(), OptionValue::Bool(true))];
-    let refused = env.reset(Some(9), &odd).unwrap_err();
-    assert_eq!(refused.code, ErrorCode::InvalidOption);
-    assert!(refused.message.contains("'no_such_option'") && refused.message.contains("overrides."), "{refused}");
+    let first = env.reset(Some(9), NO_OPTIONS).unwrap();
+    let refused = env.reset(Some(9), &overriding(&[("no_such_key", OptionValue::Bool(true))])).unwrap_err();
+    assert_eq!(refused.code, ErrorCode::InvalidScenario);
+    assert!(refused.message.contains("no_such_key"), "{refused}");
     assert!(env.step(&[]).is_ok(), "a refused reset leaves the episode as it was");
-    let faster = [("overrides.vehicle.ec_0.speed".to_string(), OptionValue::Float(23.0))];
-    let reset = env.reset(Some(9), &faster).unwrap();
-    let speed = |outcome: &ResetOutcome| outcome[0].2.values.iter().find(|(k, _)| k == "speed").map(|(_, v)| v.clone());
+    let reset = env.reset(Some(9), &overriding(&[("vehicle.ec_0.speed", OptionValue::Float(23.0))])).unwrap();
+    let speed = |starts: &[AgentStart]| starts[0].info.get(arena_protocol::info::SPEED).cloned();
     assert_eq!(speed(&reset), Some(InfoValue::F64(23.0)));
     assert_eq!(speed(&first), Some(InfoValue::F64(20.0)));
-    // The next reset without the option is the scenario's own again.
-    assert_eq!(env.reset(Some(9), &[]).unwrap(), first);
-    let bad = [("overrides.vehicle.nobody.speed".to_string(), OptionValue::Float(1.0))];
+    // The next reset without the override is the scenario's own again.
+    assert_eq!(env.reset(Some(9), NO_OPTIONS).unwrap(), first);
+    let bad = overriding(&[("vehicle.nobody.speed", OptionValue::Float(1.0))]);
     assert_eq!(env.reset(Some(9), &bad).unwrap_err().code, ErrorCode::InvalidScenario);
+}
+
+#[test]
+fn an_override_at_creation_and_the_same_at_reset_give_the_same_episode() {
+    for (key, value) in [
+        ("vehicle.ac.speed", OptionValue::Float(18.0)),
+        ("vehicle.ac.driver", OptionValue::Str("{ kind = \"idm\" }".into())),
+        ("road.speed_limits", OptionValue::Str("[30.0, 30.0]".into())),
+    ] {
+        let options = CreateOptions { overrides: vec![(key.into(), value.clone())], ..CreateOptions::default() };
+        let mut created = env("merge", options);
+        let mut reset = env("merge", CreateOptions::default());
+        let at_creation = created.reset(Some(3), NO_OPTIONS).unwrap();
+        let at_reset = reset.reset(Some(3), &overriding(&[(key, value)])).unwrap();
+        assert_eq!(at_creation, at_reset, "{key}");
+        for _ in 0..30 {
+            assert_eq!(created.step(&[]).unwrap(), reset.step(&[]).unwrap(), "{key}");
+        }
+    }
 }
 
 #[test]
 fn bad_actions_are_refused_without_stepping() {
     let mut env = env("merge", CreateOptions::default());
-    env.reset(Some(0), &[]).unwrap();
+    env.reset(Some(0), NO_OPTIONS).unwrap();
     let before = env.world().unwrap().clone();
     let refuse = |env: &mut Env, actions: Vec<(String, Action)>| env.step(&actions).unwrap_err().code;
     assert_eq!(refuse(&mut env, meta("nobody", 1)), ErrorCode::UnknownAgent);
@@ -121,7 +150,7 @@ fn bad_actions_are_refused_without_stepping() {
         1,
     )
     .unwrap();
-    continuous.reset(Some(0), &[]).unwrap();
+    continuous.reset(Some(0), NO_OPTIONS).unwrap();
     for bad in [[f32::NAN, 0.0], [0.0, f32::INFINITY], [100.0, 0.0], [0.0, -9.0]] {
         assert_eq!(refuse(&mut continuous, vec![("ec_0".into(), Action::Continuous(bad))]), ErrorCode::InvalidAction);
     }
@@ -132,7 +161,7 @@ fn bad_actions_are_refused_without_stepping() {
 fn same_seed_same_bits_other_seed_differs() {
     let run = |seed| {
         let mut env = env("highway", CreateOptions::default());
-        let mut replies = vec![format!("{:?}", env.reset(Some(seed), &[]))];
+        let mut replies = vec![format!("{:?}", env.reset(Some(seed), NO_OPTIONS))];
         for k in 0..5u32 {
             replies.push(format!("{:?}", env.step(&meta("ego_0", k % 5)).unwrap()));
         }
@@ -143,13 +172,13 @@ fn same_seed_same_bits_other_seed_differs() {
 }
 
 fn info<'a>(step: &'a AgentStep, key: &str) -> Option<&'a InfoValue> {
-    step.info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v)
+    step.info.get(key)
 }
 
 #[test]
 fn reward_maps_the_cost_into_the_unit_interval_and_a_crash_earns_minus_the_episode_length() {
     let mut env = env("merge", CreateOptions::default());
-    env.reset(Some(0), &[]).unwrap();
+    env.reset(Some(0), NO_OPTIONS).unwrap();
     let step = &env.step(&[]).unwrap()[0];
     let Some(&InfoValue::F64(cost)) = info(step, "cost") else { panic!("no cost in {:?}", step.info) };
     let scale = arena_sim::scenario::RewardSpec::DEFAULT_COST_SCALE;
@@ -158,16 +187,16 @@ fn reward_maps_the_cost_into_the_unit_interval_and_a_crash_earns_minus_the_episo
     let Some(&InfoValue::F64(speed)) = info(step, "speed") else { panic!() };
     let progress = step.reward / (scale / (scale + cost));
     assert!((progress - speed / 25.0).abs() < 0.01 && progress < 0.85, "{progress} at {speed} m/s");
-    assert_eq!(info(step, "end_reason"), None, "only on the step an agent leaves");
+    assert_eq!(step.info.end_reason(), Some(EndReason::Running), "until the step an agent leaves");
     // Full throttle into a slow car ahead in the same lane crashes.
     let options = CreateOptions { action_type: Some(ActionType::Continuous), ..CreateOptions::default() };
     let mut env = super::Env::new(builtin("merge").unwrap().unwrap(), &options, 1).unwrap();
-    let slow_car_ahead = [
-        ("overrides.vehicle.ac.lane".to_string(), OptionValue::Int(1)),
-        ("overrides.vehicle.ac.s".to_string(), OptionValue::Float(80.0)),
-        ("overrides.vehicle.ac.speed".to_string(), OptionValue::Float(5.0)),
-        ("overrides.vehicle.ac.target_speed".to_string(), OptionValue::Float(5.0)),
-    ];
+    let slow_car_ahead = overriding(&[
+        ("vehicle.ac.lane", OptionValue::Int(1)),
+        ("vehicle.ac.s", OptionValue::Float(80.0)),
+        ("vehicle.ac.speed", OptionValue::Float(5.0)),
+        ("vehicle.ac.target_speed", OptionValue::Float(5.0)),
+    ]);
     env.reset(Some(0), &slow_car_ahead).unwrap();
     let mut last = None;
     for _ in 0..200 {
@@ -178,7 +207,7 @@ fn reward_maps_the_cost_into_the_unit_interval_and_a_crash_earns_minus_the_episo
         }
     }
     let last = last.expect("the episode ended");
-    assert_eq!(info(&last, "end_reason"), Some(&InfoValue::Str("collision".into())), "{:?}", last.info);
+    assert_eq!(last.info.end_reason(), Some(EndReason::Collision), "{:?}", last.info);
     assert_eq!(last.reward, -200.0, "merge.toml runs 200 steps");
 }
 
@@ -187,20 +216,20 @@ fn driving_past_the_end_of_the_lane_ends_with_lane_end_and_time_limits_with_time
     let options = CreateOptions { max_cycles: Some(400), ..CreateOptions::default() };
     let mut env = env("merge", options);
     // With the adjacent car far behind nothing is hit; holding the lane runs off its end.
-    env.reset(Some(0), &[("overrides.vehicle.ac.s".to_string(), OptionValue::Float(5.0))]).unwrap();
+    env.reset(Some(0), &overriding(&[("vehicle.ac.s", OptionValue::Float(5.0))])).unwrap();
     let ended = (0..400).find_map(|_| {
-        let steps = env.step(&meta("ec_0", arena_protocol::META_IDLE)).unwrap();
+        let steps = env.step(&meta_of("ec_0", MetaAction::Idle)).unwrap();
         (steps[0].terminated || steps[0].truncated).then(|| steps[0].clone())
     });
     let ended = ended.expect("the lane ends within 400 steps");
-    assert_eq!(info(&ended, "end_reason"), Some(&InfoValue::Str("lane_end".into())));
+    assert_eq!(ended.info.end_reason(), Some(EndReason::LaneEnd));
     assert_eq!(ended.reward, -400.0);
     let mut short = env_with_cycles("highway", 2);
-    short.reset(Some(0), &[]).unwrap();
+    short.reset(Some(0), NO_OPTIONS).unwrap();
     short.step(&[]).unwrap();
     let last = short.step(&[]).unwrap().remove(0);
     assert!(last.truncated);
-    assert_eq!(info(&last, "end_reason"), Some(&InfoValue::Str("time_limit".into())));
+    assert_eq!(last.info.end_reason(), Some(EndReason::TimeLimit));
 }
 
 fn env_with_cycles(name: &str, cycles: u32) -> Env {
@@ -211,10 +240,10 @@ fn env_with_cycles(name: &str, cycles: u32) -> Env {
 fn slower_can_stop_a_learner_behind_the_end_of_its_lane() {
     // The ladder goes down to 0: five `slower` from 25 m/s and the car stops.
     let mut env = env("merge", CreateOptions::default());
-    env.reset(Some(0), &[("overrides.vehicle.ac.s".to_string(), OptionValue::Float(5.0))]).unwrap();
+    env.reset(Some(0), &overriding(&[("vehicle.ac.s", OptionValue::Float(5.0))])).unwrap();
     let mut last = None;
     for _ in 0..150 {
-        let steps = env.step(&meta("ec_0", arena_protocol::META_SLOWER)).unwrap();
+        let steps = env.step(&meta_of("ec_0", MetaAction::Slower)).unwrap();
         assert!(!steps[0].terminated, "{:?}", steps[0].info);
         last = Some(steps[0].clone());
     }
@@ -228,7 +257,7 @@ fn slower_can_stop_a_learner_behind_the_end_of_its_lane() {
 #[test]
 fn renders_show_the_road() {
     let mut env = env("overtake", CreateOptions { render_size: Some((60, 120)), ..CreateOptions::default() });
-    env.reset(Some(0), &[]).unwrap();
+    env.reset(Some(0), NO_OPTIONS).unwrap();
     let Frame::Rgb { height, width, pixels } = env.render(RenderMode::RgbArray).unwrap() else { panic!("rgb") };
     assert_eq!((height, width, pixels.len()), (60, 120, 60 * 120 * 3));
     assert!(pixels.chunks(3).any(|p| p == [50, 200, 80]), "the learner is drawn green");
@@ -245,7 +274,7 @@ fn renders_show_the_road() {
 #[test]
 fn past_a_lane_end_the_line_beside_it_is_a_solid_edge_and_the_ended_lane_has_none() {
     let mut env = env("merge", CreateOptions::default());
-    env.reset(Some(0), &[]).unwrap();
+    env.reset(Some(0), NO_OPTIONS).unwrap();
     let world = env.world().unwrap();
     let marked = |s: f64, d: f64| super::render::is_marking(world, s, d, 0.05);
     // Between lanes 0 and 1 (d = -2): dashed while both go on, solid after lane 1 ends.
@@ -260,27 +289,27 @@ fn past_a_lane_end_the_line_beside_it_is_a_solid_edge_and_the_ended_lane_has_non
 fn expert_infos_say_what_the_built_in_av_would_do() {
     let options = CreateOptions { expert: Some(arena_protocol::Game::Stackelberg), ..CreateOptions::default() };
     let mut env = env("merge", options);
-    let value = |info: &Info, key: &str| info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone());
-    let reset = env.reset(Some(0), &[]).unwrap();
+    let value = |info: &Info, key: &str| info.get(key).cloned();
+    let reset = env.reset(Some(0), NO_OPTIONS).unwrap();
     let step = env.step(&[]).unwrap();
-    for info in [&reset[0].2, &step[0].info] {
+    for info in [&reset[0].info, &step[0].info] {
         let Some(InfoValue::I64(action)) = value(info, "expert_action") else { panic!("{info:?}") };
         let Some(InfoValue::I64(sigma)) = value(info, "expert_sigma") else { panic!("{info:?}") };
         assert!((0..5).contains(&action) && (-1..=1).contains(&sigma));
         // EC's lane (1) ends; the only way to change lanes is left.
         assert!(sigma <= 0 && action != 2, "sigma {sigma}, action {action}");
         // A lane change in the expert's decision is the lane action; otherwise a speed one.
-        let speed_actions = [arena_protocol::META_IDLE, arena_protocol::META_FASTER, arena_protocol::META_SLOWER];
+        let speed_actions = [MetaAction::Idle, MetaAction::Faster, MetaAction::Slower];
         match sigma {
-            -1 => assert_eq!(action, i64::from(arena_protocol::META_LANE_LEFT)),
-            _ => assert!(speed_actions.map(i64::from).contains(&action), "{action}"),
+            -1 => assert_eq!(action, i64::from(MetaAction::LaneLeft.code())),
+            _ => assert!(speed_actions.map(|a| i64::from(a.code())).contains(&action), "{action}"),
         }
     }
     let plain = super::Env::new(builtin("merge").unwrap().unwrap(), &CreateOptions::default(), 1)
         .unwrap()
-        .reset(Some(0), &[])
+        .reset(Some(0), NO_OPTIONS)
         .unwrap();
-    assert!(value(&plain[0].2, "expert_action").is_none(), "only on request");
+    assert!(value(&plain[0].info, "expert_action").is_none(), "only on request");
 }
 
 #[test]
@@ -297,21 +326,21 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
             // Random play, then two adversaries: always left, always full throttle.
             for policy in 0..3 {
                 for seed in 0..4 {
-                    env.reset(Some(seed), &[]).unwrap();
+                    env.reset(Some(seed), NO_OPTIONS).unwrap();
                     let (mut total, mut crashed) = (0.0, false);
                     loop {
                         let action = match (action_type, policy) {
                             (ActionType::Meta, 0) => Action::Meta(rng.random_range(0..5)),
-                            (ActionType::Meta, 1) => Action::Meta(arena_protocol::META_LANE_LEFT),
-                            (ActionType::Meta, _) => Action::Meta(arena_protocol::META_FASTER),
+                            (ActionType::Meta, 1) => Action::Meta(MetaAction::LaneLeft.code()),
+                            (ActionType::Meta, _) => Action::Meta(MetaAction::Faster.code()),
                             (_, 0) => Action::Continuous([rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0)]),
                             (_, 1) => Action::Continuous([0.0, 1.0]),
                             (_, _) => Action::Continuous([1.0, 0.0]),
                         };
                         let step = env.step(&[(agent.clone(), action)]).unwrap().remove(0);
                         let ended_badly = matches!(
-                            info(&step, "end_reason"),
-                            Some(InfoValue::Str(why)) if ["collision", "off_road", "lane_end"].contains(&why.as_str())
+                            step.info.end_reason(),
+                            Some(EndReason::Collision | EndReason::OffRoad | EndReason::LaneEnd)
                         );
                         if ended_badly {
                             assert_eq!(step.reward, -f64::from(max_cycles), "{name}: {:?}", step.info);
@@ -339,7 +368,7 @@ fn a_randomised_scenario_repeats_an_episode_bit_for_bit_for_its_seed_and_varies_
     for name in ["merge-random", "overtake-random"] {
         let run = |seed| {
             let mut env = env(name, CreateOptions::default());
-            let mut replies = vec![format!("{:?}", env.reset(Some(seed), &[]).unwrap())];
+            let mut replies = vec![format!("{:?}", env.reset(Some(seed), NO_OPTIONS).unwrap())];
             for k in 0..20u32 {
                 replies.push(format!("{:?}", env.step(&meta("ec_0", k % 5)).unwrap()));
             }
@@ -364,7 +393,7 @@ fn a_render_size_whose_frames_could_not_travel_is_refused_at_creation() {
     assert_eq!(refused.code, ErrorCode::InvalidScenario);
     assert!(refused.message.contains("50331648 bytes") && refused.message.contains("message limit"), "{refused}");
     let mut largest = create((2300, 2300)).unwrap();
-    largest.reset(Some(0), &[]).unwrap();
+    largest.reset(Some(0), NO_OPTIONS).unwrap();
     let Frame::Rgb { pixels, .. } = largest.render(RenderMode::RgbArray).unwrap() else { panic!("rgb") };
     assert!(
         arena_protocol::encode(&Frame::Rgb { height: 2300, width: 2300, pixels }).len()
@@ -374,12 +403,22 @@ fn a_render_size_whose_frames_could_not_travel_is_refused_at_creation() {
 
 /// Runs one episode of `env` (seed 0) with no actions; returns the last step's info.
 fn last_info(env: &mut Env) -> Info {
-    env.reset(Some(0), &[]).unwrap();
+    env.reset(Some(0), NO_OPTIONS).unwrap();
     loop {
         let steps = env.step(&[]).unwrap();
         let agent = &steps[0];
         let ends = agent.terminated || agent.truncated;
-        assert!(ends || !agent.info.values.iter().any(|(k, _)| k.starts_with("episode_")), "only on the last step");
+        assert_eq!(agent.info.get(arena_protocol::info::EPISODE_DONE), Some(&InfoValue::Bool(ends)));
+        if !ends {
+            let figures = agent.info.values.iter().filter(|(k, _)| k.starts_with("episode_"));
+            assert!(
+                figures
+                    .clone()
+                    .all(|(_, v)| matches!(v, InfoValue::F64(0.0) | InfoValue::I64(0) | InfoValue::Bool(false))),
+                "zero until the last step: {:?}",
+                agent.info
+            );
+        }
         if ends {
             return agent.info.clone();
         }
@@ -387,7 +426,7 @@ fn last_info(env: &mut Env) -> Info {
 }
 
 fn figure(info: &Info, key: &str) -> InfoValue {
-    info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v.clone()).unwrap_or_else(|| panic!("{key}: {info:?}"))
+    info.get(key).cloned().unwrap_or_else(|| panic!("{key}: {info:?}"))
 }
 
 #[test]
@@ -397,7 +436,7 @@ fn a_built_in_policy_drives_the_learner_in_the_server_and_its_episode_is_summed_
     let info = last_info(&mut driven);
     // The game-theoretic EC merges into lane 0 (the paper's Scenario A): a success, with
     // its lane change begun within the first seconds, as `arena paper` finds.
-    assert_eq!(figure(&info, "end_reason"), InfoValue::Str("time_limit".into()));
+    assert_eq!(info.end_reason(), Some(EndReason::TimeLimit));
     assert_eq!(figure(&info, "episode_success"), InfoValue::Bool(true));
     assert_eq!(figure(&info, "episode_length"), InfoValue::I64(200));
     let InfoValue::F64(t_c) = figure(&info, "episode_t_c") else { panic!() };
@@ -405,16 +444,16 @@ fn a_built_in_policy_drives_the_learner_in_the_server_and_its_episode_is_summed_
     let InfoValue::F64(gap) = figure(&info, "episode_min_gap") else { panic!() };
     assert!(gap > 0.0 && gap.is_finite(), "min gap {gap}");
     // Sending actions to a learner the server drives is refused, naming the option.
-    driven.reset(Some(0), &[]).unwrap();
+    driven.reset(Some(0), NO_OPTIONS).unwrap();
     let refused = driven.step(&meta("ec_0", 1)).unwrap_err();
     assert!(refused.code == ErrorCode::InvalidAction && refused.message.contains("policy"), "{refused}");
 
     // Idle in the ending lane: it drives past the lane's end, never merges, and fails.
     let mut idle = env("merge", CreateOptions::default());
     let info = last_info(&mut idle);
-    assert_eq!(figure(&info, "end_reason"), InfoValue::Str("lane_end".into()));
+    assert_eq!(info.end_reason(), Some(EndReason::LaneEnd));
     assert_eq!(figure(&info, "episode_success"), InfoValue::Bool(false));
-    assert!(!info.values.iter().any(|(k, _)| k == "episode_t_c"), "no lane change, no t_c");
+    assert_eq!(figure(&info, "episode_t_c"), InfoValue::F64(f64::INFINITY), "no lane change: never");
     assert!(matches!(figure(&info, "episode_length"), InfoValue::I64(n) if n < 200));
 }
 
@@ -435,10 +474,10 @@ fn standing_still_earns_nothing_however_cheap_it_is() {
     // against the driver's own target, charges almost nothing (PPO found this). The
     // reward measures progress against the speed the scenario aims for, fixed per episode.
     let mut env = env("merge", CreateOptions::default());
-    env.reset(Some(0), &[]).unwrap();
+    env.reset(Some(0), NO_OPTIONS).unwrap();
     let mut last = None;
     for _ in 0..100 {
-        last = Some(env.step(&meta("ec_0", arena_protocol::META_SLOWER)).unwrap()[0].clone());
+        last = Some(env.step(&meta_of("ec_0", MetaAction::Slower)).unwrap()[0].clone());
     }
     let last = last.unwrap();
     let Some(&InfoValue::F64(speed)) = info(&last, "speed") else { panic!() };
@@ -455,7 +494,7 @@ fn diagnostics_on_request_count_each_game_theoretic_cars_plans_and_qp_iterations
         Some(InfoValue::I64(n)) => *n,
         other => panic!("{key}: {other:?} in {:?}", step.info),
     };
-    diagnosed.reset(Some(0), &[]).unwrap();
+    diagnosed.reset(Some(0), NO_OPTIONS).unwrap();
     for k in 1..=5 {
         let step = diagnosed.step(&[]).unwrap()[0].clone();
         // merge has one gt car, AC; it plans once per control period, one per step here.
@@ -465,7 +504,7 @@ fn diagnostics_on_request_count_each_game_theoretic_cars_plans_and_qp_iterations
         assert_eq!((count(&step, "gt.ac.fallbacks"), count(&step, "gt.ac.inexact")), (0, 0));
     }
     let mut plain = env("merge", CreateOptions::default());
-    plain.reset(Some(0), &[]).unwrap();
+    plain.reset(Some(0), NO_OPTIONS).unwrap();
     let step = plain.step(&[]).unwrap()[0].clone();
     assert!(!step.info.values.iter().any(|(k, _)| k.starts_with("gt.")), "only on request");
 }
@@ -473,7 +512,7 @@ fn diagnostics_on_request_count_each_game_theoretic_cars_plans_and_qp_iterations
 #[test]
 fn the_observed_neighbours_are_those_a_full_sort_puts_first() {
     let mut env = env("highway", CreateOptions::default());
-    env.reset(Some(2), &[]).unwrap();
+    env.reset(Some(2), NO_OPTIONS).unwrap();
     for _ in 0..3 {
         env.step(&[]).unwrap();
         let scene = env.world.as_mut().unwrap().scene();
@@ -489,4 +528,83 @@ fn the_observed_neighbours_are_those_a_full_sort_puts_first() {
             assert_eq!(observation::nearest::<4>(scene, car.id, car.state.s).to_vec(), expected, "{:?}", car.id);
         }
     }
+}
+
+/// The (key, type) list of an info, and whether any number in it is NaN.
+fn shape(info: &Info) -> (Vec<(String, arena_protocol::InfoKind)>, bool) {
+    let nan = info.values.iter().any(|(_, v)| match v {
+        InfoValue::F64(x) => x.is_nan(),
+        InfoValue::F64s(xs) => xs.iter().any(|x| x.is_nan()),
+        _ => false,
+    });
+    (info.values.iter().map(|(k, v)| (k.clone(), v.kind())).collect(), nan)
+}
+
+mod schema {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+        /// Every scenario, with every option that adds keys: the infos of reset and of
+        /// every step (the last included) have the same keys, types and order, begin with
+        /// `info::SCHEMA`, and hold no NaN.
+        #[test]
+        fn infos_keep_one_schema_from_reset_to_the_last_step(
+            scenario in 0usize..arena_sim::scenario::BUILTIN.len(),
+            option in 0usize..4,
+            seed in 0u64..1000,
+            actions in proptest::collection::vec(0u32..5, 40),
+        ) {
+            let name = arena_sim::scenario::BUILTIN[scenario].0;
+            let continuous = option == 2;
+            let options = CreateOptions {
+                max_cycles: Some(40),
+                action_type: Some(if continuous { ActionType::Continuous } else { ActionType::Meta }),
+                expert: (option == 1 || option == 2).then_some(arena_protocol::Game::Nash),
+                diagnostics: option == 3,
+                ..CreateOptions::default()
+            };
+            let mut env = env(name, options);
+            let starts = env.reset(Some(seed), NO_OPTIONS).unwrap();
+            let (first, nan) = shape(&starts[0].info);
+            prop_assert!(!nan, "{name}: NaN on reset");
+            let schema: Vec<_> = arena_protocol::info::SCHEMA.iter().map(|(k, t)| (k.to_string(), *t)).collect();
+            prop_assert_eq!(&first[..schema.len()], &schema[..], "{}: the schema first", name);
+            let agents = env.specs().possible_agents;
+            for start in &starts {
+                prop_assert_eq!(&shape(&start.info).0, &first);
+            }
+            for &code in &actions {
+                let action = if continuous { Action::Continuous([code as f32 / 4.0 - 0.5, 0.0]) } else { Action::Meta(code) };
+                let chosen: Vec<_> = agents.iter().map(|a| (a.clone(), action.clone())).collect();
+                let Ok(steps) = env.step(&chosen) else { break };
+                for step in &steps {
+                    let (keys, nan) = shape(&step.info);
+                    prop_assert!(!nan, "{}: NaN in {:?}", name, step.info);
+                    prop_assert_eq!(&keys, &first, "{}: another schema at a step", name);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn an_action_for_an_agent_that_has_finished_is_ignored_and_one_for_an_unknown_agent_refused() {
+    // merge-duo: EC idles in the ending lane and runs off its end while AC drives on.
+    let options = || CreateOptions { max_cycles: Some(300), ..CreateOptions::default() };
+    let (mut always, mut live_only) = (env("merge-duo", options()), env("merge-duo", options()));
+    always.reset(Some(0), NO_OPTIONS).unwrap();
+    live_only.reset(Some(0), NO_OPTIONS).unwrap();
+    let both = [("ec_0".to_string(), Action::Meta(1)), ("ac_0".to_string(), Action::Meta(1))];
+    let mut after_ec_left = 0;
+    while !live_only.live_agents().is_empty() {
+        let live: Vec<_> = both.iter().filter(|(a, _)| live_only.live_agents().contains(a)).cloned().collect();
+        after_ec_left += usize::from(live.len() == 1);
+        assert_eq!(always.step(&both).unwrap(), live_only.step(&live).unwrap());
+    }
+    assert!(after_ec_left > 10, "AC drove on alone for {after_ec_left} steps");
+    always.reset(Some(0), NO_OPTIONS).unwrap();
+    assert_eq!(always.step(&meta("nobody", 1)).unwrap_err().code, ErrorCode::UnknownAgent);
 }

@@ -7,7 +7,10 @@
 //! told `ShuttingDown` at once, so no client waits out its timeout on a server that left.
 //! Memory freed when clients leave is handed back to the system here (`malloc_trim`).
 
+mod limits;
+mod memory;
 mod registry;
+mod scenarios;
 
 use std::sync::{Arc, RwLock};
 use std::time::{Duration, Instant};
@@ -16,7 +19,11 @@ use arena_protocol::{ClientTag, ErrorCode, ErrorReply, PROTOCOL_VERSION, Reply, 
 use zenoh::Wait;
 use zenoh::sample::SampleKind;
 
-pub use registry::{Limits, ORPHAN_GRACE, Registry, Scenarios};
+pub use limits::{Limits, ORPHAN_GRACE};
+pub use registry::Registry;
+pub use scenarios::Scenarios;
+
+use memory::return_freed_memory;
 
 /// How long a closing server keeps answering `ShuttingDown` after the requests in flight
 /// are answered, so requests already on their way get an answer, not a timeout.
@@ -28,17 +35,6 @@ pub const ECHO_MAX_REPLY: usize = 64 * 1024;
 
 /// How often freed memory is handed back when nothing was closed.
 const TRIM_PERIOD: Duration = Duration::from_secs(5);
-
-/// Hands back to the system the memory freed by closed envs and departed sessions. glibc
-/// keeps freed memory in its per-thread arenas, so without this a server's resident size
-/// stays near its peak after clients leave.
-fn return_freed_memory() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: malloc_trim takes no pointers; it only releases free pages of glibc's heaps.
-    unsafe {
-        libc::malloc_trim(0);
-    }
-}
 
 /// A running server. Dropping it undeclares everything; `close` also ends the session.
 pub struct Server {

@@ -12,6 +12,12 @@ over Zenoh.
 game-theoretic AV driving in the learner's place (``pip install highway-arena[datasets]``);
 ``highway_arena.bc`` fits a numpy-only behaviour-cloning policy to one.
 
+Every agent's infos have the keys ``INFO_KEYS`` (then the ``expert_*`` ones with
+``expert=``), in that order, on reset and on every step, all numbers or bools:
+``info["end_reason"]`` is an index into ``END_REASONS`` (0, "running", until the agent's
+last step), and the ``episode_*`` figures are zero until ``info["episode_done"]``.
+Meta actions are indices into ``META_ACTIONS``.
+
 ``connect`` defaults to $HIGHWAY_ARENA_CONNECT, else tcp/127.0.0.1:7447 (where
 ``arena-server`` listens by default); ``launch_server()`` starts one for you.
 """
@@ -30,6 +36,7 @@ from ._errors import (
     ServerGoneError,
     ServerNotFoundError,
 )
+from ._core import END_REASONS, INFO_KEYS, META_ACTIONS
 from ._server import LocalServer, find_server_binary, launch_server, serving
 from .batch import BatchEnv
 from .datasets import record
@@ -39,6 +46,9 @@ from .single import GymEnv
 from .vector import VectorEnv
 
 __all__ = [
+    "END_REASONS",
+    "INFO_KEYS",
+    "META_ACTIONS",
     "ArenaError",
     "ArenaTimeoutError",
     "BatchEnv",
@@ -68,7 +78,16 @@ __all__ = [
 ]
 
 
-for _scenario in ("merge", "merge-ac", "overtake", "highway", "highway-gt", "merge-random", "overtake-random"):
+for _scenario in (
+    "merge",
+    "merge-ac",
+    "merge-duo",
+    "overtake",
+    "highway",
+    "highway-gt",
+    "merge-random",
+    "overtake-random",
+):
     # gymnasium.make("highway_arena/merge-v0", connect=...) builds a GymEnv.
     gymnasium.register(
         f"highway_arena/{_scenario}-v0", entry_point="highway_arena.single:GymEnv", kwargs={"scenario": _scenario}

@@ -7,7 +7,7 @@ from __future__ import annotations
 from . import _convert
 from ._errors import InvalidActionError, translate, translated
 from . import _core
-from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_TIMEOUT, Connection, reset_options
+from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_RETRIES, DEFAULT_TIMEOUT, Connection, reset_options
 
 
 class BatchEnv:
@@ -24,11 +24,12 @@ class BatchEnv:
         connect_timeout=DEFAULT_CONNECT_TIMEOUT,
         zenoh_config=None,
         mode=None,
+        retries=DEFAULT_RETRIES,
         **options,
     ):
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
-        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode)
+        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode, retries)
         self._envs = []
         try:
             for server in self._connection.place(num_envs):

@@ -29,13 +29,19 @@ from dataclasses import dataclass
 import gymnasium
 import numpy as np
 from gymnasium.envs.registration import EnvSpec
+from . import _core
 
 STYLES = ("aggressive", "normal", "conservative")
 GAMES = ("nash", "stackelberg")
 ENTRY_POINT = "highway_arena.single:GymEnv"
-# What the end_reason of a failed episode says (docs/rewards.md): the learner crashed or
-# left the road; road_end and time_limit are not failures.
+# The end reasons of a failed episode (docs/rewards.md): the learner crashed or left the
+# road; road_end and time_limit are not failures. Infos carry an end reason as its index.
 FAILURES = ("collision", "off_road", "lane_end")
+
+
+def end_reason(info: dict) -> str:
+    """The name of the end reason an info carries (``END_REASONS[info["end_reason"]]``)."""
+    return _core.END_REASONS[int(info["end_reason"])]
 
 
 @dataclass(frozen=True)
@@ -217,7 +223,7 @@ def record(
                 if terminated or truncated:
                     break
             steps += len(actions)
-            failures += info.get("end_reason") in FAILURES
+            failures += end_reason(info) in FAILURES
             buffers.append(
                 EpisodeBuffer(
                     id=i,
@@ -275,7 +281,7 @@ def rollout(env, policy, episodes: int, seed: int = 0) -> dict:
             if terminated or truncated:
                 break
         returns.append(total)
-        reasons.append(info.get("end_reason", "?"))
+        reasons.append(end_reason(info))
     failures = sum(reason in FAILURES for reason in reasons)
     return {
         "returns": returns,

@@ -35,9 +35,9 @@ def default_connect() -> str:
 
 # A Zenoh endpoint: <protocol>/<address>[?<metadata>][#<config>].
 _ENDPOINT = re.compile(r"^[A-Za-z][A-Za-z0-9_+-]*/\S+$")
-# Attempts per request: a request that got no reply is resent (a step keeps its sequence
-# number, so the server never steps twice); the attempts share the caller's timeout.
-_ATTEMPTS = 3
+# Resends of a request that got no reply, by default (a step keeps its sequence number, so
+# the server never steps twice): the Rust client's and the CLI's default too.
+DEFAULT_RETRIES = 2
 
 
 def _endpoints(connect) -> list[str]:
@@ -64,8 +64,8 @@ _PETTINGZOO_SIGNATURE_PROBE = {"options": 1}
 
 
 def reset_options(options) -> dict:
-    """The wire form of ``reset(options=...)``: ``{"overrides": {key: value}}`` becomes
-    ``{"overrides.<key>": value}``; any other key is refused, naming it."""
+    """The overrides of ``reset(options=...)``, ``{"overrides": {key: value}}``; any other
+    key is refused, naming it."""
     if options is None or options == _PETTINGZOO_SIGNATURE_PROBE:
         return {}
     if not isinstance(options, dict):
@@ -80,13 +80,35 @@ def reset_options(options) -> dict:
     overrides = options.get("overrides") or {}
     if not isinstance(overrides, dict):
         raise TypeError("options['overrides'] must be a dict of dotted scenario keys to values")
-    return {f"overrides.{key}": value for key, value in overrides.items()}
+    return {str(key): value for key, value in overrides.items()}
+
+
+# The keywords of every env constructor that say how to reach the server.
+CONNECTION_KEYWORDS = ("connect", "prefix", "timeout", "retries", "connect_timeout", "zenoh_config", "mode")
+
+
+def scenario_overrides(overrides, dotted: dict, signature: str, valid) -> dict:
+    """``overrides=`` and the ``vehicle__ac__speed=`` keywords as one dict of dotted keys.
+    A keyword without ``__`` is not an override: it is refused, naming it and the valid
+    keywords, instead of reaching the scenario as an unknown key."""
+    unknown = sorted(key for key in dotted if "__" not in key)
+    if unknown:
+        raise TypeError(
+            f"{signature} got unexpected keyword argument(s) {unknown}; its keywords are "
+            f"{', '.join(valid)}; scenario overrides are written vehicle__ac__speed=18.0 "
+            '(dots as double underscores) or overrides={"vehicle.ac.speed": 18.0}'
+        )
+    merged = dict(overrides or {})
+    merged.update({key.replace("__", "."): value for key, value in dotted.items()})
+    return merged
 
 
 class Connection:
-    """One Zenoh session and the server picked on it. ``timeout`` bounds, in seconds,
-    how long any one call waits in all (retries included); ``zenoh_config`` is a Zenoh
-    JSON5 file (user and password, TLS) for a deployment with access control."""
+    """One Zenoh session and the server picked on it. ``timeout`` is the seconds each
+    attempt of a call waits for its reply and ``retries`` how often a call that got none
+    is resent (steps keep their sequence number, so none runs twice), as in the Rust
+    client and the CLI; ``zenoh_config`` is a Zenoh JSON5 file (user and password, TLS)
+    for a deployment with access control."""
 
     def __init__(
         self,
@@ -96,6 +118,7 @@ class Connection:
         connect_timeout=DEFAULT_CONNECT_TIMEOUT,
         zenoh_config=None,
         mode=None,
+        retries=DEFAULT_RETRIES,
     ):
         endpoints = _endpoints(connect)
         timeout, connect_timeout = float(timeout), float(connect_timeout)
@@ -103,13 +126,15 @@ class Connection:
             raise ValueError(f"timeout must be a positive number of seconds, not {timeout}")
         if not connect_timeout > 0 or connect_timeout == float("inf"):
             raise ValueError(f"connect_timeout must be a positive number of seconds, not {connect_timeout}")
+        if isinstance(retries, bool) or not isinstance(retries, int) or not 0 <= retries <= 100:
+            raise ValueError(f"retries must be a whole number of resends from 0 to 100, not {retries!r}")
         where = ", ".join(endpoints)
         try:
             self.client = _core.Client(
                 endpoints,
                 prefix=prefix,
-                timeout=timeout / _ATTEMPTS,
-                retries=_ATTEMPTS - 1,
+                timeout=timeout,
+                retries=retries,
                 zenoh_config=None if zenoh_config is None else str(zenoh_config),
                 mode=mode,
             )
@@ -173,7 +198,8 @@ class ParallelEnv(_ParallelEnv):
     ``gt.<car>.plans``, ``.qp_iterations``, ``.qp_iterations_total``, ``.fallbacks``,
     ``.inexact``), ``seed`` (used by
     the first ``reset()`` that is given none, for reproducible runs), ``timeout`` (the
-    seconds any one call may wait for the server, retries included; default 10),
+    seconds each attempt of a call waits for the server's reply; default 10), ``retries``
+    (resends of a call that got no reply; default 2),
     ``connect_timeout`` (the seconds to wait for a server to appear; default 1),
     ``zenoh_config`` (a Zenoh JSON5 file: credentials and TLS for a deployment with access
     control, see docs/deployment.md), ``mode`` (the Zenoh session mode: 'client' through a
@@ -202,15 +228,16 @@ class ParallelEnv(_ParallelEnv):
         mode=None,
         render_size=None,
         seed=None,
+        retries=DEFAULT_RETRIES,
         **dotted,
     ):
         # Kept so a pickled env (SuperSuit's vector envs copy them) rebuilds its own.
         self._init_args = {key: value for key, value in locals().items() if key not in ("self", "__class__")}
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, not {render_mode!r}")
-        all_overrides = dict(overrides or {})
-        all_overrides.update({key.replace("__", "."): value for key, value in dotted.items()})
-        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode)
+        valid = [key for key in self._init_args if key != "dotted"]
+        all_overrides = scenario_overrides(overrides, dotted, "parallel_env()", valid)
+        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode, retries)
         try:
             self._env = self._connection.create(
                 scenario,

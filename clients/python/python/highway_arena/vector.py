@@ -15,7 +15,7 @@ from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
 from . import _convert, _core
 from ._errors import translate, translated
-from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_TIMEOUT, Connection, reset_options
+from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_RETRIES, DEFAULT_TIMEOUT, Connection, reset_options
 
 
 class VectorEnv(gymnasium.vector.VectorEnv):
@@ -38,6 +38,7 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         connect_timeout=DEFAULT_CONNECT_TIMEOUT,
         zenoh_config=None,
         mode=None,
+        retries=DEFAULT_RETRIES,
         scenario_text=None,
         overrides=None,
         autoreset_mode=AutoresetMode.NEXT_STEP,
@@ -50,7 +51,7 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
         self.num_envs = int(num_envs)
-        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode)
+        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode, retries)
         self._envs = []
         try:
             overrides = dict(overrides or {})

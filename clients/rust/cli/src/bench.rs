@@ -17,7 +17,7 @@ use arena_client::blocking::{Client, Env};
 use arena_client::{Action, CreateOptions, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
 use arena_protocol::{
-    ClientId, EnvId, META_IDLE, OptionValue, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, encode,
+    ClientId, EnvId, MetaAction, OptionValue, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, encode,
 };
 use serde::Serialize;
 
@@ -112,7 +112,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     };
     let mut env = client.create_env(&server, ScenarioSource::Named("merge".into()), idm_ac)?;
     env.reset(Some(0), vec![])?;
-    let actions = vec![("ec_0".to_string(), Action::Meta(META_IDLE))];
+    let actions = vec![("ec_0".to_string(), Action::Meta(MetaAction::Idle.code()))];
     let sample = env.step(actions.clone())?;
     let request_bytes = encode(&Request {
         version: PROTOCOL_VERSION,
@@ -243,7 +243,7 @@ fn batch_loop(
     }
     let agent = envs[0].specs().possible_agents.first().cloned().unwrap_or_default();
     while !stop.load(Ordering::Relaxed) {
-        let actions = (0..LOAD_BATCH).map(|_| vec![(agent.clone(), Action::Meta(META_IDLE))]).collect();
+        let actions = (0..LOAD_BATCH).map(|_| vec![(agent.clone(), Action::Meta(MetaAction::Idle.code()))]).collect();
         let mut handles: Vec<&mut Env> = envs.iter_mut().collect();
         let results = other.step_batch(&mut handles, actions)?;
         for (k, result) in results.into_iter().enumerate() {
@@ -299,7 +299,7 @@ fn measure_batch(client: &Client, size: usize, seconds: f64) -> anyhow::Result<B
     let (mut stepped, mut rounds) = (0usize, 0u64);
     let clock = Instant::now();
     while clock.elapsed().as_secs_f64() < seconds {
-        let actions = (0..size).map(|_| vec![(agent.clone(), Action::Meta(META_IDLE))]).collect();
+        let actions = (0..size).map(|_| vec![(agent.clone(), Action::Meta(MetaAction::Idle.code()))]).collect();
         let mut handles: Vec<&mut Env> = envs.iter_mut().collect();
         let results = client.step_batch(&mut handles, actions)?;
         rounds += 1;

@@ -11,7 +11,7 @@ use arena_client::blocking::{Client, Env};
 use arena_client::eval::{self, Episode, Summary};
 use arena_client::{Action, CreateOptions, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
-use arena_protocol::{BuiltinPolicy, META_IDLE, Space};
+use arena_protocol::{BuiltinPolicy, MetaAction, Space};
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -175,7 +175,7 @@ impl Run<'_> {
     fn reset(&self, mut env: Env, seed: u64) -> anyhow::Result<Slot> {
         let reply =
             env.reset(Some(seed), vec![]).with_context(|| format!("resetting '{}' with seed {seed}", self.scenario))?;
-        let live = reply.observations.into_iter().map(|(agent, _)| agent).collect();
+        let live = reply.agents.into_iter().map(|start| start.agent).collect();
         Ok(Slot { env, seed, random: ChaCha8Rng::seed_from_u64(seed), live })
     }
 
@@ -194,9 +194,9 @@ impl Run<'_> {
                 let reply = reply.with_context(|| {
                     format!("stepping '{}' (policy {}, seed {})", self.scenario, self.name, slot.seed)
                 })?;
-                for (agent, info) in &reply.infos {
-                    if !reply.agents.contains(agent) {
-                        let episode = Episode::from_info(self.name, self.scenario, slot.seed, agent, info)
+                for step in &reply.steps {
+                    if !reply.agents.contains(&step.agent) {
+                        let episode = Episode::from_info(self.name, self.scenario, slot.seed, &step.agent, &step.info)
                             .map_err(anyhow::Error::msg)?;
                         done.push(episode);
                     }
@@ -218,11 +218,11 @@ impl Run<'_> {
             let action = match (self.policy, space) {
                 (Policy::Server(_), _) => continue,
                 (Policy::Idle, Some(Space::Box { .. })) => Action::Continuous([0.0, 0.0]),
-                (Policy::Idle, _) => Action::Meta(META_IDLE),
+                (Policy::Idle, _) => Action::Meta(MetaAction::Idle.code()),
                 (Policy::Random, Some(Space::Box { .. })) => {
                     Action::Continuous([slot.random.random_range(-1.0..=1.0), slot.random.random_range(-1.0..=1.0)])
                 }
-                (Policy::Random, _) => Action::Meta(slot.random.random_range(0..5)),
+                (Policy::Random, _) => Action::Meta(slot.random.random_range(0..MetaAction::ALL.len() as u32)),
             };
             actions.push((agent.clone(), action));
         }

@@ -6,7 +6,7 @@ use std::time::{Duration, Instant};
 
 use arena_client::{Action, CreateOptions, Frame, RenderMode, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
-use arena_protocol::{Game, Info, InfoValue, META_FASTER, META_IDLE, Space};
+use arena_protocol::{Game, Info, InfoValue, MetaAction, Space};
 
 /// Arguments of `arena play`.
 #[derive(Debug, clap::Args)]
@@ -52,7 +52,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     let mut random = args.seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
     for episode in 0..args.episodes {
         let reset = env.reset(Some(args.seed + u64::from(episode)), vec![])?;
-        let mut infos = reset.infos;
+        let mut infos: Vec<(String, Info)> = reset.agents.into_iter().map(|start| (start.agent, start.info)).collect();
         let mut live = specs.possible_agents.clone();
         let mut returns = vec![0.0; specs.possible_agents.len()];
         let mut endings = vec![String::from("still driving"); specs.possible_agents.len()];
@@ -68,21 +68,14 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
                 })
                 .collect();
             let reply = env.step(actions)?;
-            for (agent, reward) in &reply.rewards {
-                if let Some(k) = specs.possible_agents.iter().position(|a| a == agent) {
-                    returns[k] += reward;
+            for step in &reply.steps {
+                let Some(k) = specs.possible_agents.iter().position(|a| *a == step.agent) else { continue };
+                returns[k] += step.reward;
+                if let Some(end) = step.info.end_reason().filter(|end| *end != arena_protocol::EndReason::Running) {
+                    endings[k] = format!("{end} after {} steps", cycle + 1);
                 }
             }
-            for (agent, info) in &reply.infos {
-                let ending = info.values.iter().find_map(|(k, v)| match (k.as_str(), v) {
-                    ("end_reason", InfoValue::Str(why)) => Some(why.clone()),
-                    _ => None,
-                });
-                if let (Some(k), Some(ending)) = (specs.possible_agents.iter().position(|a| a == agent), ending) {
-                    endings[k] = format!("{ending} after {} steps", cycle + 1);
-                }
-            }
-            infos = reply.infos.clone();
+            infos = reply.steps.iter().map(|step| (step.agent.clone(), step.info.clone())).collect();
             live = reply.agents.clone();
             cycle += 1;
             if let Frame::Ansi(text) = env.render(RenderMode::Ansi)? {
@@ -115,7 +108,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
 fn choose(policy: Policy, space: Option<&Space>, info: Option<&Info>, state: &mut u64) -> Action {
     *state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
     let draw = (*state >> 33) as f64 / (1u64 << 31) as f64;
-    let expert = info.and_then(|info| info.values.iter().find(|(k, _)| k == "expert_action")).map(|(_, v)| v);
+    let expert = info.and_then(|info| info.get(arena_protocol::info::EXPERT_ACTION));
     match (policy, expert) {
         (Policy::Expert, Some(InfoValue::I64(action))) => return Action::Meta(*action as u32),
         (Policy::Expert, Some(InfoValue::F64s(values))) if values.len() == 2 => {
@@ -129,8 +122,11 @@ fn choose(policy: Policy, space: Option<&Space>, info: Option<&Info>, state: &mu
         (Policy::Random, Some(Space::Box { low, high, .. })) => {
             Action::Continuous([low[0] + (high[0] - low[0]) * draw as f32, 0.0])
         }
-        (Policy::Random, _) => Action::Meta((draw * 5.0) as u32 % 5),
-        (Policy::Faster, _) => Action::Meta(META_FASTER),
-        (Policy::Idle | Policy::Expert, _) => Action::Meta(META_IDLE),
+        (Policy::Random, _) => {
+            let count = MetaAction::ALL.len() as u32;
+            Action::Meta((draw * f64::from(count)) as u32 % count)
+        }
+        (Policy::Faster, _) => Action::Meta(MetaAction::Faster.code()),
+        (Policy::Idle | Policy::Expert, _) => Action::Meta(MetaAction::Idle.code()),
     }
 }

@@ -12,7 +12,10 @@
 
 use multiversion::multiversion;
 
-use super::{Command, Inputs, Lanes, Model, StateLanes, Stepper, VehicleState, step_lanes};
+use super::integrate::{Stepper, step_lanes};
+use super::lanes::Lanes;
+use super::model::{Inputs, Model};
+use super::state::{Command, StateLanes, VehicleState};
 
 /// Vehicles per block: 8 doubles fill one AVX-512 register (two AVX2, four SSE).
 pub const BLOCK: usize = 8;

@@ -1,3 +1,6 @@
+use nalgebra::SVector;
+
+use super::state::Vector8;
 use super::*;
 
 const DT: f64 = 0.01;

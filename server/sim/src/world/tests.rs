@@ -107,10 +107,36 @@ fn oriented_boxes() {
     assert!(!oriented_boxes_overlap((0.0, 0.0, 0.0), (0.0, 2.1, 0.0), half));
     // Rotated 90 degrees, the long side now reaches across.
     assert!(oriented_boxes_overlap((0.0, 0.0, 0.0), (0.0, 3.4, std::f64::consts::FRAC_PI_2), half));
-    assert!(
-        !oriented_boxes_overlap((0.0, 0.0, 0.0), (3.6, 0.0, 0.3), half)
-            || 3.6 < 2.5 + 2.5 * 0.3f64.cos() + 0.3f64.sin()
-    );
+
+    // Turned 0.3 rad, straight ahead: the turned box's rear-left corner, (-2.5, 1.0) in its
+    // own frame, lies (-2.5 cos 0.3 - sin 0.3, -2.5 sin 0.3 + cos 0.3) = (-2.684, 0.217) from
+    // its centre. It is the box's rearmost point and within the first box's width, so the
+    // two first touch when it meets the first box's front (x = 2.5): with the centres
+    // 2.5 + 2.5 cos 0.3 + sin 0.3 = 5.184 m apart. (Leaving out the width's sin 0.3 puts
+    // that at 4.888; testing the turned box's axes alone, at 5.426.)
+    let turned = 0.3f64;
+    let touch = 2.5 + 2.5 * turned.cos() + turned.sin();
+    assert!((touch - 5.184).abs() < 1e-3, "{touch}");
+    for x in [3.6, touch - 0.01] {
+        assert!(oriented_boxes_overlap((0.0, 0.0, 0.0), (x, 0.0, turned), half), "turned box {x} m ahead");
+    }
+    for x in [touch + 0.01, 5.3] {
+        assert!(!oriented_boxes_overlap((0.0, 0.0, 0.0), (x, 0.0, turned), half), "turned box {x} m ahead");
+    }
+
+    // Turned 45 degrees, up and to the left at (-c, c): its lower long side lies
+    // sqrt(2) c - 1 from the first box's centre along n = (-1, 1) / sqrt(2), the first
+    // box's top-left corner (-2.5, 1) at 3.5 / sqrt(2) = 2.475 along n (and 1.06 m from the
+    // side's middle, well within its 2.5 m half length). At c = 2.5 the side is at 2.536,
+    // 6 cm clear of the corner, though the boxes' shadows on both of the first box's axes
+    // overlap: only the turned box's own axis n separates them. At c = 2.4 it is at 2.394,
+    // 8 cm into the corner.
+    let diagonal = std::f64::consts::FRAC_PI_4;
+    assert!(!oriented_boxes_overlap((0.0, 0.0, 0.0), (-2.5, 2.5, diagonal), half));
+    assert!(oriented_boxes_overlap((0.0, 0.0, 0.0), (-2.4, 2.4, diagonal), half));
+    // Either box may come first.
+    assert!(!oriented_boxes_overlap((-2.5, 2.5, diagonal), (0.0, 0.0, 0.0), half));
+    assert!(oriented_boxes_overlap((-2.4, 2.4, diagonal), (0.0, 0.0, 0.0), half));
 }
 
 /// Every vehicle's state bits after each of `ticks` ticks, by name.

@@ -1,0 +1,40 @@
+//! The paper's integrated driver + bicycle model, eq. (1)–(8): its parameters (Tables I
+//! and II), the state derivative, fixed-step RK4 integration, and the linearisation and
+//! exact discretisation of eq. (22)–(24) that the MPC plans with.
+//!
+//! Vehicles move in the road's Frenet frame: `s` along the reference line, `d` to its
+//! left, `heading` relative to the tangent. On a straight road (curvature 0) this is
+//! exactly eq. (6) with X = s, Y = d; on an arc the kinematics gain the usual
+//! `1 / (1 - curvature * d)` factor, so the driver of eq. (1) previews the lane, not the
+//! global Y axis (docs/design.md, "Frenet frame").
+//!
+//! One concern a file: `params` (Tables I and II), `state` (x and u of eq. 7-8), `model`
+//! (f(x, u), eq. 1-8, written once over `lanes::Lanes`), `integrate` (RK4 and `Stepper`),
+//! `fleet` (many vehicles a block at a time, the same bits), `linear` (eq. 22-24 for the
+//! MPC), `path` (the quintic lateral path drivers preview), and `physics_step` (what a
+//! physics step must do well: settle a lane change, keep RK4 stable).
+
+mod fleet;
+mod integrate;
+mod lanes;
+mod linear;
+mod model;
+mod params;
+mod path;
+mod physics_step;
+mod state;
+
+pub use fleet::Fleet;
+pub use integrate::{Derivative, Stepper, rk4, step};
+pub use linear::{Discretisation, Linearisation, linearise};
+pub use model::{derivative, fixed_steer_derivative};
+pub use params::{DriverParams, Style, VehicleParams};
+pub use path::{LANE_CHANGE_DURATION, LateralPath};
+pub use physics_step::{
+    LANE_CHANGE_BOUNDS, LaneChangeBounds, LaneChangeResponse, RK4_CHECK_SPEEDS, cruising_modes, lane_change_response,
+    lane_change_trajectory, rk4_growth,
+};
+pub use state::{Command, INPUTS, STATES, VehicleState};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,121 @@
+//! Scenario files: TOML as written by people, validated into a `Scenario` that can build a
+//! fresh `World` for any seed and draw the scenario of each episode. Every refusal names
+//! the file, the vehicle or key, and what is wrong.
+//!
+//! One concern a file, in the order a scenario goes through them:
+//! `file` (the serde types, unknown keys refused) -> `overrides` (dotted keys set on the
+//! table, and the bound on its depth) -> `validate` (into `spec`'s checked types) ->
+//! `build` (the world at time zero, random traffic included) and `vary` (the `[vary]`
+//! draws of each episode); `error` holds the ways it can be refused.
+
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::road::Road;
+use crate::world::WorldParams;
+
+mod build;
+mod error;
+mod file;
+mod overrides;
+mod spec;
+mod validate;
+mod vary;
+
+pub use error::{ScenarioError, ScenarioErrorKind};
+pub use overrides::MAX_DEPTH;
+pub use spec::{ActionKind, DriverSpec, Goal, GtTraffic, RewardSpec, TrafficSpec, VehicleSpec};
+pub use vary::Variation;
+
+use file::ScenarioFile;
+use overrides::{apply_override, nesting};
+
+/// The scenario files shipped in `scenarios/`, compiled in so the server needs no
+/// files beside it: (name, file name, text).
+pub const BUILTIN: [(&str, &str, &str); 8] = [
+    ("merge", "merge.toml", include_str!("../../../../scenarios/merge.toml")),
+    ("overtake", "overtake.toml", include_str!("../../../../scenarios/overtake.toml")),
+    ("highway", "highway.toml", include_str!("../../../../scenarios/highway.toml")),
+    ("merge-ac", "merge-ac.toml", include_str!("../../../../scenarios/merge-ac.toml")),
+    ("merge-duo", "merge-duo.toml", include_str!("../../../../scenarios/merge-duo.toml")),
+    ("highway-gt", "highway-gt.toml", include_str!("../../../../scenarios/highway-gt.toml")),
+    ("merge-random", "merge-random.toml", include_str!("../../../../scenarios/merge-random.toml")),
+    ("overtake-random", "overtake-random.toml", include_str!("../../../../scenarios/overtake-random.toml")),
+];
+
+/// Loads a built-in scenario by name (`merge`, `overtake`, `highway`, ...).
+pub fn builtin(name: &str) -> Option<Result<Scenario, ScenarioError>> {
+    BUILTIN.iter().find(|(n, ..)| *n == name).map(|(_, file, text)| Scenario::parse(file, text, &[]))
+}
+
+/// A validated scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    /// Short name (`merge`).
+    pub name: String,
+    /// One line on what it is.
+    pub description: String,
+    /// The road.
+    pub road: Road,
+    /// Physics and control timing.
+    pub world: WorldParams,
+    /// Simulated seconds per env step.
+    pub step_dt: f64,
+    /// Env steps per episode before truncation.
+    pub max_cycles: u32,
+    /// Named vehicles in file order.
+    pub vehicles: Vec<VehicleSpec>,
+    /// Random background traffic, if any.
+    pub traffic: Option<TrafficSpec>,
+    /// The reward's constants.
+    pub reward: RewardSpec,
+    /// What counts as a learner's success.
+    pub goal: Goal,
+    /// Values drawn afresh for each episode, by dotted key (`[vary]`).
+    pub vary: Vec<(String, Variation)>,
+    /// Where it came from, to draw episodes: the file name, its text, its overrides.
+    source: (String, String, Vec<(String, toml::Value)>),
+}
+
+impl Scenario {
+    /// Reads and validates a scenario file.
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+        let file = path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into_owned());
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| ScenarioError { file: file.clone(), kind: ScenarioErrorKind::Io(e.to_string()) })?;
+        Scenario::parse(&file, &text, &[])
+    }
+
+    /// Parses and validates scenario text; `overrides` are (dotted key, TOML value)
+    /// pairs applied before validation, so they are checked exactly as the file is.
+    pub fn parse(file: &str, text: &str, overrides: &[(String, toml::Value)]) -> Result<Scenario, ScenarioError> {
+        let fail = |kind| ScenarioError { file: file.to_string(), kind };
+        let mut table: toml::Table =
+            text.parse().map_err(|e: toml::de::Error| fail(ScenarioErrorKind::Syntax(e.to_string())))?;
+        for (key, value) in overrides {
+            apply_override(&mut table, key, value.clone()).map_err(&fail)?;
+        }
+        let depth = nesting(&table);
+        if depth > MAX_DEPTH {
+            return Err(fail(ScenarioErrorKind::TooDeep { depth }));
+        }
+        let raw: ScenarioFile = if overrides.is_empty() {
+            toml::from_str(text)
+        } else {
+            ScenarioFile::deserialize(toml::Value::Table(table))
+        }
+        .map_err(|e: toml::de::Error| fail(ScenarioErrorKind::Syntax(e.to_string())))?;
+        let mut scenario = raw.validate().map_err(fail)?;
+        scenario.source = (file.to_string(), text.to_string(), overrides.to_vec());
+        Ok(scenario)
+    }
+
+    /// The learner-driven vehicles, in file order: the env's `possible_agents`.
+    pub fn agents(&self) -> impl Iterator<Item = &VehicleSpec> {
+        self.vehicles.iter().filter(|v| matches!(v.driver, DriverSpec::Agent(_)))
+    }
+}
+
+#[cfg(test)]
+mod tests;

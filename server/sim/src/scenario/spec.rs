@@ -1,0 +1,123 @@
+//! The validated parts a `Scenario` is made of: its named vehicles and who drives them,
+//! its random traffic, its reward's constants and a learner's goal. Plain data, checked
+//! once by `validate`; the env, `arena eval` and `build` read them and check nothing.
+
+use serde::Deserialize;
+
+use crate::dynamics::Style;
+use crate::gt::{Game, GtParams};
+use crate::road::LaneId;
+use crate::scene::Role;
+
+/// How a learner drives its vehicle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ActionKind {
+    /// Discrete 5: lane left, idle, lane right, faster, slower.
+    #[default]
+    Meta,
+    /// Acceleration and lateral preview target.
+    Continuous,
+}
+
+/// A named vehicle, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VehicleSpec {
+    /// Unique name.
+    pub name: String,
+    /// Lane it starts in.
+    pub lane: LaneId,
+    /// Start position along the road (m).
+    pub s: f64,
+    /// Start offset (m).
+    pub d: f64,
+    /// Start speed (m/s).
+    pub speed: f64,
+    /// Speed its driver aims for (m/s).
+    pub target_speed: f64,
+    /// Driving style.
+    pub style: Style,
+    /// Who drives it.
+    pub driver: DriverSpec,
+}
+
+/// Who drives a named vehicle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+// A spec is built once per scenario and copied into a driver: the size of the `Gt`
+// variant (its constants, by value so the spec stays plain `Copy` data) costs nothing.
+#[allow(clippy::large_enum_variant)]
+pub enum DriverSpec {
+    /// A learner, through the env.
+    Agent(ActionKind),
+    /// IDM + MOBIL.
+    Idm,
+    /// The game-theoretic AV of `gt`.
+    Gt {
+        /// Nash or Stackelberg.
+        game: Game,
+        /// Leader (the paper's EC) or follower (its AC).
+        role: Role,
+        /// Its constants: the defaults, or the preset its `params` names, with its
+        /// `follower_tolerance` (eq. 17b) if given.
+        params: GtParams,
+    },
+}
+
+/// Random IDM traffic placed like highway-env's `Vehicle.create_random`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrafficSpec {
+    /// How many vehicles.
+    pub count: u32,
+    /// highway-env's `vehicles_density`.
+    pub density: f64,
+    /// Initial speed range (m/s); each car's target speed is its initial speed.
+    pub speed: [f64; 2],
+    /// Lanes to place cars in.
+    pub lanes: Vec<LaneId>,
+    /// Style of their steering.
+    pub style: Style,
+    /// How many of them the game-theoretic AV drives, spread evenly through the traffic
+    /// (every `count / gt.count`-th car), and how.
+    pub gt: Option<GtTraffic>,
+}
+
+/// The game-theoretic cars among random traffic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GtTraffic {
+    /// How many.
+    pub count: u32,
+    /// Nash or Stackelberg.
+    pub game: Game,
+    /// Their style.
+    pub style: Style,
+    /// Leader or follower.
+    pub role: Role,
+}
+
+/// How the env turns the paper's cost J into a reward (docs/rewards.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RewardSpec {
+    /// J_0 of r = J_0 / (J_0 + J): the cost at which a step earns half the most.
+    pub cost_scale: f64,
+    /// The reward of the step an agent crashes or leaves the road; `None`: minus the
+    /// episode length in steps, below any episode without a crash.
+    pub crash: Option<f64>,
+}
+
+impl RewardSpec {
+    /// J_0 by default: what the normal style pays in efficiency alone 11 m/s off its
+    /// target speed (0.2 x 11.2^2); calm driving costs a few units and earns about 0.8
+    /// (docs/rewards.md).
+    pub const DEFAULT_COST_SCALE: f64 = 25.0;
+}
+
+/// What a learner's episode must achieve to count as a success (`arena eval`, the
+/// `episode_success` info): end without a crash, off the road or past its lane's end, and
+/// then in one of `lanes` (if any are given) ahead of every vehicle of `ahead_of`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Goal {
+    /// Lanes the learner must end in; empty: any.
+    pub lanes: Vec<LaneId>,
+    /// Vehicles the learner must end ahead of (greater s).
+    pub ahead_of: Vec<String>,
+}

@@ -1,0 +1,142 @@
+//! The info phase of a step: every agent's info in the one schema of
+//! `arena_protocol::info` (the same keys, types and order on reset and on every step;
+//! docs/protocol.md), built here and nowhere else; then the keys an option turns on, on
+//! every step while it is on: what the built-in AV would do (`expert`) and the
+//! game-theoretic cars' solver counts (`diagnostics`).
+
+use arena_protocol::info::{self as key, DIAGNOSTIC_COUNTS};
+use arena_protocol::{ActionType, EndReason, Info, InfoValue, MetaAction};
+
+use arena_sim::gt::Decision;
+use arena_sim::world::{Driver, Status, VehicleId, World};
+
+use super::action;
+use super::episode::Figures;
+use super::simulate::StepCost;
+
+/// What the step did to one agent, beyond its vehicle's state.
+pub struct Outcome<'a> {
+    /// The step's cost; `None` on reset.
+    pub cost: Option<&'a StepCost>,
+    /// Whether its action acted.
+    pub applied: bool,
+    /// Why its episode ended, or `Running`.
+    pub end: EndReason,
+    /// Its episode's figures (zero until it ended).
+    pub figures: Figures,
+}
+
+impl Outcome<'_> {
+    /// A reset's: nothing happened yet.
+    pub fn start() -> Outcome<'static> {
+        Outcome { cost: None, applied: true, end: EndReason::Running, figures: Figures::default() }
+    }
+}
+
+/// The `SCHEMA` part of vehicle `id`'s info, in its order.
+pub fn info(world: &World, id: VehicleId, outcome: &Outcome) -> Info {
+    let vehicle = world.vehicle(id);
+    let cost = outcome.cost.copied().unwrap_or_default();
+    let f = &outcome.figures;
+    let values = [
+        (key::SPEED, InfoValue::F64(vehicle.state.vx)),
+        (key::LANE, InfoValue::I64(i64::from(world.road().nearest_lane(vehicle.state.d).0))),
+        (key::S, InfoValue::F64(vehicle.state.s)),
+        (key::CRASHED, InfoValue::Bool(vehicle.status == Status::Crashed)),
+        (key::OFF_ROAD, InfoValue::Bool(vehicle.status == Status::OffRoad)),
+        (key::COST, InfoValue::F64(cost.weighted)),
+        (key::COST_SAFETY, InfoValue::F64(cost.components.safety)),
+        (key::COST_COMFORT, InfoValue::F64(cost.components.comfort)),
+        (key::COST_EFFICIENCY, InfoValue::F64(cost.components.efficiency)),
+        (key::ACTION_APPLIED, InfoValue::Bool(outcome.applied)),
+        (key::END_REASON, InfoValue::I64(outcome.end.code())),
+        (key::EPISODE_DONE, InfoValue::Bool(f.done)),
+        (key::EPISODE_SUCCESS, InfoValue::Bool(f.success)),
+        (key::EPISODE_RETURN, InfoValue::F64(f.total_reward)),
+        (key::EPISODE_LENGTH, InfoValue::I64(i64::from(f.length))),
+        (key::EPISODE_MEAN_SPEED, InfoValue::F64(f.mean_speed)),
+        (key::EPISODE_MIN_GAP, InfoValue::F64(f.min_gap)),
+        (key::EPISODE_MIN_TTC, InfoValue::F64(f.min_ttc)),
+        (key::EPISODE_RMS_SAFETY, InfoValue::F64(f.rms.safety)),
+        (key::EPISODE_RMS_COMFORT, InfoValue::F64(f.rms.comfort)),
+        (key::EPISODE_RMS_EFFICIENCY, InfoValue::F64(f.rms.efficiency)),
+        (key::EPISODE_T_C, InfoValue::F64(f.t_c)),
+    ];
+    let mut info = Info { values: Vec::with_capacity(ENTRIES) };
+    for (name, value) in values {
+        info.push(name, value);
+    }
+    info
+}
+
+/// More than the entries of any info (the schema, the expert's keys, a few cars'
+/// diagnostics), so an info is allocated once.
+const ENTRIES: usize = key::SCHEMA.len() + key::EXPERT.len() + 2 * DIAGNOSTIC_COUNTS.len();
+
+/// The expert's keys: its action in the agent's own space, its acceleration and its σ.
+/// An agent whose episode ended gets the neutral ones (idle, or zeros).
+pub fn add_expert(info: &mut Info, action: ActionType, expert: Option<(Decision, InfoValue)>) {
+    let (decision, action) = expert.unwrap_or_else(|| {
+        let idle = match action {
+            ActionType::Meta => InfoValue::I64(i64::from(MetaAction::Idle.code())),
+            ActionType::Continuous => InfoValue::F64s(vec![0.0, 0.0]),
+        };
+        (Decision::default(), idle)
+    });
+    info.push(key::EXPERT_ACTION, action);
+    info.push(key::EXPERT_ACCEL, InfoValue::F64(decision.accel));
+    info.push(key::EXPERT_SIGMA, InfoValue::I64(i64::from(decision.lane_change.sigma())));
+}
+
+/// What the built-in AV would do in agent `id`'s place now, as the agent's own action:
+/// for a meta agent the meta action that best reproduces the AV's decision; for a
+/// continuous one the AV's whole command (its acceleration and the preview point its MPC
+/// plans, relative to the current lane), planned with the memory the AV would have had
+/// in this place, so replaying it drives as the AV drives.
+pub fn expert(
+    world: &mut World,
+    id: VehicleId,
+    kind: ActionType,
+    memory: &mut arena_sim::gt::GtDriver,
+) -> (Decision, InfoValue) {
+    match kind {
+        ActionType::Meta => {
+            let decision = world.expert_decision(id, memory.game);
+            let vehicle = world.vehicle(id);
+            let (lane, target, s) = (vehicle.target_lane, vehicle.target_speed, vehicle.state.s);
+            let mask = action::meta_mask(world.road(), lane, target, s);
+            let limit = world.road().speed_limit(lane);
+            let meta = action::meta_equivalent(&decision, mask, world.idm(), vehicle.state.vx, target, limit);
+            (decision, InfoValue::I64(i64::from(meta.code())))
+        }
+        ActionType::Continuous => {
+            let command = world.expert_command(id, memory);
+            let road = world.road();
+            let centre = road.lane_center(world.current_lane(id));
+            let accel = (command.accel / action::CONTINUOUS_ACCEL_SCALE).clamp(-1.0, 1.0);
+            let offset = ((command.preview - centre) / road.lane_width()).clamp(-1.0, 1.0);
+            (memory.decision, InfoValue::F64s(vec![accel, offset]))
+        }
+    }
+}
+
+/// Every game-theoretic car's solver counts since the episode began, keyed
+/// `gt.<car>.<count>`, cars in the world's order (named ones by name, then traffic). No
+/// timings: infos are bit-reproducible, so decision times live in the benchmarks
+/// (docs/performance.md).
+pub fn add_diagnostics(info: &mut Info, world: &World) {
+    for vehicle in world.vehicles() {
+        let Driver::Gt(gt) = &vehicle.driver else { continue };
+        let d = &gt.diagnostics;
+        let counts = [
+            i64::from(d.plans),
+            i64::from(d.iterations),
+            i64::try_from(d.iterations_total).unwrap_or(i64::MAX),
+            i64::from(d.fallbacks),
+            i64::from(d.inexact),
+        ];
+        for (count, value) in DIAGNOSTIC_COUNTS.into_iter().zip(counts) {
+            info.values.push((format!("gt.{}.{count}", vehicle.name), InfoValue::I64(value)));
+        }
+    }
+}

@@ -1,0 +1,68 @@
+//! The simulate phase of a step: the world advanced by one env step, tick by tick, with
+//! each agent's cost (eq. 9-14) sampled at the end of every control period it drives, so
+//! the reward and the infos read the step's mean cost without another pass.
+
+use arena_sim::gt::CostComponents;
+use arena_sim::world::{Status, VehicleId, World};
+
+/// The cost of one agent over one env step, sampled at the end of each control period
+/// it was driving.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepCost {
+    /// Mean of the three components.
+    pub components: CostComponents,
+    /// Mean of J = w . components with the agent's style weights.
+    pub weighted: f64,
+    /// Sum of the squares of each component's samples, for the episode's RMS.
+    pub squares: CostComponents,
+    /// How many samples.
+    pub samples: u32,
+    /// Mean speed along the lane (m/s) at the samples.
+    pub speed: f64,
+}
+
+/// Advances the world by `step_dt` and writes into `costs` each vehicle's mean cost over
+/// it (a buffer the caller keeps: steps allocate nothing for it).
+pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64, costs: &mut Vec<StepCost>) {
+    let per_control = world.params().substeps_per_control();
+    let ticks = (step_dt / world.params().physics_dt).round() as u64;
+    let sums = costs;
+    sums.clear();
+    sums.resize(vehicles.len(), StepCost::default());
+    let mut samples = 0u32;
+    for tick in 0..ticks {
+        world.tick();
+        if (tick + 1).is_multiple_of(per_control) || tick + 1 == ticks {
+            samples += 1;
+            for (sum, &id) in sums.iter_mut().zip(vehicles) {
+                if world.vehicle(id).status == Status::Driving {
+                    sample(world, id, sum);
+                }
+            }
+        }
+    }
+    let n = f64::from(samples.max(1));
+    for sum in sums.iter_mut() {
+        *sum = StepCost {
+            components: CostComponents {
+                safety: sum.components.safety / n,
+                comfort: sum.components.comfort / n,
+                efficiency: sum.components.efficiency / n,
+            },
+            weighted: sum.weighted / n,
+            speed: sum.speed / n,
+            ..*sum
+        };
+    }
+}
+
+/// Adds vehicle `id`'s cost and speed now to `sum`.
+fn sample(world: &mut World, id: VehicleId, sum: &mut StepCost) {
+    let cost = world.stage_cost(id);
+    let vehicle = world.vehicle(id);
+    sum.components = sum.components + cost;
+    sum.squares = sum.squares + cost.squared();
+    sum.samples += 1;
+    sum.speed += vehicle.state.lane_speed();
+    sum.weighted += cost.weighted(vehicle.style);
+}

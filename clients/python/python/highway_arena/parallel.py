@@ -83,9 +83,6 @@ def reset_options(options) -> dict:
     return {str(key): value for key, value in overrides.items()}
 
 
-# The keywords of every env constructor that say how to reach the server.
-CONNECTION_KEYWORDS = ("connect", "prefix", "timeout", "retries", "connect_timeout", "zenoh_config", "mode")
-
 
 def scenario_overrides(overrides, dotted: dict, signature: str, valid) -> dict:
     """``overrides=`` and the ``vehicle__ac__speed=`` keywords as one dict of dotted keys.

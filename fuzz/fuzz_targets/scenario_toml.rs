@@ -4,7 +4,7 @@
 //! (as the proptest in server/sim/src/scenario/tests.rs checks).
 #![no_main]
 
-use arena_sim::scenario::Scenario;
+use arena_sim::Scenario;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|text: &str| {

@@ -6,7 +6,7 @@
 
 use arena_protocol::{Action, ActionType, CreateOptions, Game, Info, InfoValue, MetaAction, ResetOptions};
 use arena_server::env::Env;
-use arena_sim::scenario::BUILTIN;
+use arena_sim::BUILTIN_SCENARIOS;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -50,8 +50,8 @@ fn main() {
     let episodes: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(20);
     println!("| scenario | policy | min | mean | max | how episodes ended |");
     println!("|---|---|---|---|---|---|");
-    for (name, file, text) in BUILTIN {
-        let scenario = arena_sim::scenario::Scenario::parse(file, text, &[]).expect("built-in scenarios validate");
+    for (name, file, text) in BUILTIN_SCENARIOS {
+        let scenario = arena_sim::Scenario::parse(file, text, &[]).expect("built-in scenarios validate");
         if scenario.agents().next().is_none() {
             continue;
         }

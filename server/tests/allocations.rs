@@ -9,7 +9,7 @@ use std::cell::Cell;
 
 use arena_protocol::{Action, CreateOptions, ObservationKind};
 use arena_server::env::Env;
-use arena_sim::scenario::builtin;
+use arena_sim::builtin_scenario;
 
 struct Counting;
 
@@ -48,7 +48,7 @@ fn allocations_of<T>(work: impl FnOnce() -> T) -> (T, usize) {
 
 #[test]
 fn highway_ticks_allocate_nothing_once_warm() {
-    let mut world = builtin("highway").expect("built in").expect("parses").build(3);
+    let mut world = builtin_scenario("highway").expect("built in").expect("parses").build(3);
     world.advance(5.0);
     let start = world.time();
     let ((), allocations) = allocations_of(|| world.advance(20.0));
@@ -58,7 +58,7 @@ fn highway_ticks_allocate_nothing_once_warm() {
 
 #[test]
 fn a_highway_step_allocates_only_what_its_reply_owns() {
-    let scenario = builtin("highway").expect("built in").expect("parses");
+    let scenario = builtin_scenario("highway").expect("built in").expect("parses");
     let options = CreateOptions { observation: Some(ObservationKind::Kinematics), ..CreateOptions::default() };
     let mut env = Env::new(scenario, &options, 1).expect("highway makes an env");
     env.reset(Some(4), &arena_protocol::ResetOptions::default()).expect("reset");

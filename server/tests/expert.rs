@@ -7,8 +7,8 @@
 use arena_paper::{PaperOptions, PaperScenario};
 use arena_protocol::{Action, ActionType, CreateOptions, EndReason, Game, Info, InfoValue, ResetOptions};
 use arena_server::env::Env;
-use arena_sim::dynamics::Style;
-use arena_sim::scenario::builtin;
+use arena_sim::Style;
+use arena_sim::builtin_scenario;
 
 fn value<'a>(info: &'a Info, key: &str) -> &'a InfoValue {
     info.values.iter().find(|(k, _)| k == key).map(|(_, v)| v).unwrap_or_else(|| panic!("no {key} in {info:?}"))
@@ -29,7 +29,7 @@ struct Replay {
 fn replay(action_type: ActionType) -> Replay {
     let options =
         CreateOptions { action_type: Some(action_type), expert: Some(Game::Stackelberg), ..CreateOptions::default() };
-    let mut env = Env::new(builtin("merge").unwrap().unwrap(), &options, 0).unwrap();
+    let mut env = Env::new(builtin_scenario("merge").unwrap().unwrap(), &options, 0).unwrap();
     let mut info = env.reset(Some(0), &ResetOptions::default()).unwrap().remove(0).info;
     let (mut decisions, mut lanes, mut end) = (Vec::new(), Vec::new(), EndReason::Running);
     for k in 0..200 {
@@ -72,7 +72,7 @@ fn merge_time(replay: &Replay) -> f64 {
 
 #[test]
 fn the_continuous_expert_decides_at_arena_papers_t_c_and_the_meta_expert_merges_within_a_second() {
-    let se = arena_sim::gt::Game::Stackelberg;
+    let se = arena_sim::Game::Stackelberg;
     let paper = arena_paper::run(PaperScenario::A, Style::Normal, se, &PaperOptions::default()).unwrap().0;
     let continuous = replay(ActionType::Continuous);
     let meta = replay(ActionType::Meta);

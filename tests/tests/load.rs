@@ -6,7 +6,7 @@ mod common;
 
 use arena_protocol::{AgentStart, CreateOptions, Observation, ResetOptions};
 use arena_server::env::Env;
-use arena_sim::scenario::builtin;
+use arena_sim::builtin_scenario;
 
 const CLIENTS: u64 = 64;
 const STEPS: usize = 15;
@@ -38,7 +38,7 @@ async fn sixty_four_clients_stepping_at_once_each_get_their_own_world() {
             (start, observations)
         }));
     }
-    let scenario = builtin("merge-random").expect("shipped").expect("loads");
+    let scenario = builtin_scenario("merge-random").expect("shipped").expect("loads");
     for (k, run) in runs.into_iter().enumerate() {
         let (remote_start, remote): (Vec<AgentStart>, Vec<Vec<(String, Observation)>>) =
             run.await.expect("a client task");

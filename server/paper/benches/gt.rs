@@ -10,10 +10,10 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use arena_paper::{PaperOptions, PaperScenario, world};
-use arena_sim::dynamics::Style;
-use arena_sim::gt::{Game, GtDriver, GtParams, Mpc, expert_decision, plan, plan_motion};
-use arena_sim::scene::{Scene, VehicleId};
-use arena_sim::world::Driver;
+use arena_sim::Driver;
+use arena_sim::Style;
+use arena_sim::{Game, GtDriver, GtParams, Mpc, expert_decision, plan, plan_motion};
+use arena_sim::{Scene, VehicleId};
 use criterion::Criterion;
 
 /// Scenario B's initial scene, EC's id and its driver.

@@ -2,7 +2,7 @@
 //! horizon and samples, acceleration bounds, lead-car range, follower tolerance, the
 //! adjacent cars' target speeds), each within declared bounds, to the t_c, gaps and
 //! speeds of Tables IV and VI, and writes the fit as a parameter preset
-//! (`arena_sim::preset`). `--on A` and `--on B` fit one table and print the other as held
+//! (`arena_sim::Preset`). `--on A` and `--on B` fit one table and print the other as held
 //! out; `--on both` (the default) fits them jointly, optionally after each alone
 //! (`--held-out-iterations`), whose fits then seed the joint swarm.
 //!
@@ -25,11 +25,11 @@ use argmin::solver::particleswarm::{Particle, ParticleSwarm};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rand_xoshiro::rand_core::{RngCore, SeedableRng};
 
-use arena_sim::dynamics::Style;
-use arena_sim::gt::Game;
-use arena_sim::preset::{self, Preset};
-use arena_sim::road::LaneChange;
-use arena_sim::scenario::{BUILTIN, Scenario};
+use arena_sim::Game;
+use arena_sim::LaneChange;
+use arena_sim::Preset;
+use arena_sim::Style;
+use arena_sim::{BUILTIN_SCENARIOS, Scenario};
 
 use crate::compare::{self, Cell, Figure};
 use crate::{PaperOptions, PaperScenario, Record, Reference};
@@ -212,7 +212,7 @@ impl Knob {
 /// The target speed the shipped scenario file gives the vehicle of `key`.
 fn file_target_speed(scenario: &str, key: &str) -> f64 {
     let name = key.split('.').nth(1).unwrap_or_default();
-    let (_, file, text) = BUILTIN.iter().find(|(n, ..)| *n == scenario).expect("a built-in scenario");
+    let (_, file, text) = BUILTIN_SCENARIOS.iter().find(|(n, ..)| *n == scenario).expect("a built-in scenario");
     let parsed = Scenario::parse(file, text, &[]).expect("the shipped scenarios parse");
     parsed.vehicles.iter().find(|v| v.name == name).map_or(f64::NAN, |v| v.target_speed)
 }
@@ -501,56 +501,59 @@ pub fn preset_text(name: &str, description: &str, options: &PaperOptions) -> Str
     let mut root = toml::Table::new();
     root.insert("name".into(), name.into());
     root.insert("description".into(), description.into());
-    root.insert("gt".into(), toml::Value::Table(preset::gt_changes(&options.params)));
+    root.insert("gt".into(), toml::Value::Table(Preset::changes_of(&options.params)));
     root.insert("scenario".into(), toml::Value::Table(scenario));
     toml::to_string_pretty(&root).expect("a preset serialises")
 }
 
-/// Arguments of `arena calibrate`.
-#[derive(Debug, clap::Args)]
-pub struct CalibrateArgs {
-    /// Which table to fit: A (Table IV), B (Table VI) or both (jointly). The other is
-    /// printed as held out.
-    #[arg(long, default_value = "both", value_parser = ["A", "B", "both"])]
+/// What `arena calibrate` is asked for: the CLI's flags (clients/rust/cli/src/paper.rs,
+/// where each is explained) without the CLI.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrateConfig {
+    /// Which table to fit: "A", "B" or "both".
     pub on: String,
-    /// Seed of the swarm: the same seed gives the same fit.
-    #[arg(long, default_value_t = 14)]
+    /// Seed of the swarm.
     pub seed: u64,
     /// Particles of the swarm.
-    #[arg(long, default_value_t = 16)]
     pub particles: usize,
-    /// Swarm iterations of the last fit (each evaluates every particle: 12 runs for --on
-    /// both, 6 for A or B).
-    #[arg(long, default_value_t = 40)]
+    /// Swarm iterations of the last fit.
     pub iterations: u64,
-    /// With --on both: swarm iterations of a fit of each table alone, run first (the
-    /// other table held out) to seed the joint swarm; 0 (the default) skips them: in our
-    /// runs the seeded joint fits put fewer cells in the ±30 % band (docs/paper-reproduction.md).
-    #[arg(long, default_value_t = 0)]
+    /// With `on` both: iterations of a fit of each table alone, run first; 0 skips them.
     pub held_out_iterations: u64,
-    /// Spread of the initial swarm around the start, as a share of each knob's range.
-    #[arg(long, default_value_t = 0.25)]
+    /// Spread of the initial swarm, as a share of each knob's range.
     pub spread: f64,
-    /// Threads evaluating candidates (the fit does not depend on it).
-    #[arg(long, default_value_t = 2)]
+    /// Threads evaluating candidates.
     pub jobs: usize,
-    /// Start from this preset (a built-in name or a .toml file) instead of the defaults.
-    #[arg(long, default_value = "default")]
+    /// The preset the fit starts from.
     pub from: String,
-    /// Knobs to fit (comma-separated); by default all but the adjacent cars' style.
-    /// `--knobs list` prints them.
-    #[arg(long, value_delimiter = ',')]
+    /// Knobs to fit; empty for all but the adjacent cars' style, `["list"]` to list them.
     pub knobs: Vec<String>,
     /// Name of the preset written.
-    #[arg(long, default_value = "paper-fit")]
     pub name: String,
-    /// Folder the preset is written to, as NAME.toml (created if missing).
-    #[arg(long, default_value = "out/calibrate")]
+    /// Folder the preset is written to, as NAME.toml.
     pub out: PathBuf,
 }
 
+impl Default for CalibrateConfig {
+    fn default() -> Self {
+        CalibrateConfig {
+            on: "both".into(),
+            seed: 14,
+            particles: 16,
+            iterations: 40,
+            held_out_iterations: 0,
+            spread: 0.25,
+            jobs: 2,
+            from: "default".into(),
+            knobs: Vec::new(),
+            name: "paper-fit".into(),
+            out: "out/calibrate".into(),
+        }
+    }
+}
+
 /// Runs `arena calibrate`.
-pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
+pub fn run(args: CalibrateConfig) -> anyhow::Result<()> {
     if args.knobs == ["list"] {
         for k in KNOBS {
             println!("{:<28} {} ..= {} ({:?})", k.name, k.low, k.high, k.scale);
@@ -563,7 +566,8 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     let fitted: Vec<PaperScenario> = match args.on.as_str() {
         "A" => vec![PaperScenario::A],
         "B" => vec![PaperScenario::B],
-        _ => PaperScenario::ALL.to_vec(),
+        "both" => PaperScenario::ALL.to_vec(),
+        other => anyhow::bail!("--on must be A, B or both, not '{other}'"),
     };
     // A scenario's own knobs move only when its table is fitted (`Stage::run`): the
     // held-out one keeps its file's.
@@ -571,7 +575,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
         true => KNOBS.into_iter().filter(|k| k.scale != Scale::Style).collect(),
         false => args.knobs.iter().map(|name| knob(name)).collect::<anyhow::Result<_>>()?,
     };
-    let start = PaperOptions::with_preset(&preset::load(&args.from)?);
+    let start = PaperOptions::with_preset(&Preset::load(&args.from)?);
     let started = std::time::Instant::now();
     // --on both: each table alone first (the other held out), then both, the swarm
     // starting around the start and the two single-table fits.
@@ -606,7 +610,7 @@ struct Stage {
 
 impl Stage {
     /// Fits, with a progress bar, and prints the knobs and every cell (fitted and held out).
-    fn run(self, args: &CalibrateArgs, knobs: &[Knob], start: &PaperOptions) -> anyhow::Result<Fit> {
+    fn run(self, args: &CalibrateConfig, knobs: &[Knob], start: &PaperOptions) -> anyhow::Result<Fit> {
         let knobs: Vec<Knob> =
             knobs.iter().copied().filter(|k| k.scenario().is_none_or(|s| self.fitted.contains(&s))).collect();
         let spec = FitSpec {
@@ -710,7 +714,7 @@ pub fn knob_values(knobs: &[Knob], options: &PaperOptions) -> BTreeMap<&'static 
 
 /// Loads preset `name` as paper options, for `arena paper --params`.
 pub fn options_of(name: &str) -> anyhow::Result<(Preset, PaperOptions)> {
-    let preset = preset::load(name)?;
+    let preset = Preset::load(name)?;
     let options = PaperOptions::with_preset(&preset);
     Ok((preset, options))
 }

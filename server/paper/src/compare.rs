@@ -2,8 +2,8 @@
 //! t_c of a run that changes lanes in the paper, with its relative error. `arena paper`
 //! prints these errors, and `arena calibrate` fits to them.
 
-use arena_sim::dynamics::Style;
-use arena_sim::gt::Game;
+use arena_sim::Game;
+use arena_sim::Style;
 
 use crate::{PaperScenario, Record, reference};
 
@@ -178,7 +178,7 @@ mod tests {
             t_c,
             gaps_at_t_c: BTreeMap::from([("AC".to_string(), gap)]),
             speeds_at_t_c: BTreeMap::from([("EC".to_string(), 23.25), ("AC".to_string(), 20.76)]),
-            lane_change: arena_sim::road::LaneChange::Left,
+            lane_change: arena_sim::LaneChange::Left,
             collision: false,
             rms_cost: Default::default(),
             inexact_decisions: 0,

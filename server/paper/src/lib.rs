@@ -4,8 +4,8 @@
 //! series of Figs. 8, 9, 12, 13. `arena paper` and the tests both run through here.
 //!
 //! ```
-//! use arena_sim::gt::Game;
-//! use arena_sim::dynamics::Style;
+//! use arena_sim::Game;
+//! use arena_sim::Style;
 //! use arena_paper::{PaperOptions, PaperScenario, run};
 //!
 //! let options = PaperOptions { duration: Some(1.0), ..PaperOptions::default() };
@@ -22,12 +22,12 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use arena_sim::dynamics::Style;
-use arena_sim::gt::{CostComponents, Game, GtParams, stage_cost};
-use arena_sim::preset::Preset;
-use arena_sim::road::LaneChange;
-use arena_sim::scenario::{BUILTIN, DriverSpec, Scenario, ScenarioError};
-use arena_sim::world::{Driver, Status, VehicleId, World};
+use arena_sim::LaneChange;
+use arena_sim::Preset;
+use arena_sim::Style;
+use arena_sim::{BUILTIN_SCENARIOS, DriverSpec, Scenario, ScenarioError};
+use arena_sim::{CostComponents, Game, GtParams, stage_cost};
+use arena_sim::{Driver, Status, VehicleId, World};
 
 /// One of the paper's two scenarios.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -206,7 +206,8 @@ pub fn world(
     }
     // A preset's own, last: they may set a field of the drivers above (an AC's style).
     overrides.extend(options.scenario_overrides.get(scenario.file()).cloned().unwrap_or_default());
-    let (_, file, text) = BUILTIN.iter().find(|(name, ..)| *name == scenario.file()).copied().unwrap_or(BUILTIN[0]);
+    let (_, file, text) =
+        BUILTIN_SCENARIOS.iter().find(|(name, ..)| *name == scenario.file()).copied().unwrap_or(BUILTIN_SCENARIOS[0]);
     let text = options.scenario_text.as_deref().unwrap_or(text);
     let mut parsed = Scenario::parse(file, text, &overrides)?;
     for vehicle in &mut parsed.vehicles {

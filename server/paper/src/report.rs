@@ -8,30 +8,30 @@ use std::path::{Path, PathBuf};
 
 use crate::{PaperScenario, Record, Trace};
 use anyhow::Context;
-use arena_sim::dynamics::Style;
-use arena_sim::gt::Game;
-use arena_sim::road::LaneChange;
+use arena_sim::Game;
+use arena_sim::LaneChange;
+use arena_sim::Style;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
-/// Arguments of `arena paper` (the subcommand's help line is in main.rs: it runs the
-/// world in process, no server needed).
-#[derive(Debug, clap::Args)]
-pub struct PaperArgs {
+/// What `arena paper` is asked for: the CLI's flags (clients/rust/cli/src/paper.rs)
+/// without the CLI.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReportConfig {
     /// Also write every figure of the tables as JSON to this file.
-    #[arg(long)]
     pub json: Option<PathBuf>,
     /// Folder for the PNG plots (created if missing).
-    #[arg(long, default_value = "out/paper")]
     pub out: PathBuf,
-    /// Parameter preset of every game-theoretic car: a built-in name (default,
-    /// paper-fit) or a .toml file, such as one `arena calibrate` wrote.
-    #[arg(long, default_value = "default")]
+    /// Parameter preset of every game-theoretic car: a built-in name or a .toml file.
     pub params: String,
-    /// Relative tolerance on the Stackelberg follower set of eq. (17b), if not the
-    /// preset's (0 is eq. 17b exactly).
-    #[arg(long)]
+    /// Relative tolerance on the Stackelberg follower set of eq. (17b), if not the preset's.
     pub follower_tolerance: Option<f64>,
+}
+
+impl Default for ReportConfig {
+    fn default() -> Self {
+        ReportConfig { json: None, out: "out/paper".into(), params: "default".into(), follower_tolerance: None }
+    }
 }
 
 /// One run's results.
@@ -44,7 +44,7 @@ struct Run {
 }
 
 /// Runs `arena paper`.
-pub fn run(args: PaperArgs) -> anyhow::Result<()> {
+pub fn run(args: ReportConfig) -> anyhow::Result<()> {
     let (preset, mut options) = crate::calibrate::options_of(&args.params)?;
     if let Some(tolerance) = args.follower_tolerance {
         anyhow::ensure!(

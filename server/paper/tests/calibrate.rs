@@ -4,9 +4,9 @@
 
 use arena_paper::calibrate::{self, FitSpec, Target, knob, records};
 use arena_paper::{PaperOptions, PaperScenario, Record};
-use arena_sim::dynamics::Style;
-use arena_sim::gt::Game;
-use arena_sim::road::LaneChange;
+use arena_sim::Game;
+use arena_sim::LaneChange;
+use arena_sim::Style;
 
 fn find(records: &[Record], scenario: PaperScenario, style: Style, game: Game) -> &Record {
     records
@@ -95,7 +95,7 @@ fn a_written_preset_reads_back_as_the_fit() {
     knob("overtake.ac2.target_speed").unwrap().set(&mut options, 23.0);
     knob("overtake.adjacent.style").unwrap().set(&mut options, 0.0);
     let text = calibrate::preset_text("t", "a test", &options);
-    let preset = arena_sim::preset::parse("t", &text).unwrap();
+    let preset = arena_sim::Preset::parse("t", &text).unwrap();
     let read = PaperOptions::with_preset(&preset);
     assert_eq!(read.params, options.params);
     assert_eq!(knob("overtake.ac2.target_speed").unwrap().get(&read), 23.0);

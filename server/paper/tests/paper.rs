@@ -5,10 +5,10 @@
 use std::sync::OnceLock;
 
 use arena_paper::{self as paper, PaperOptions, PaperScenario, Record, Trace};
-use arena_sim::dynamics::Style;
-use arena_sim::gt::Game;
-use arena_sim::road::LaneChange;
-use arena_sim::scenario::BUILTIN;
+use arena_sim::BUILTIN_SCENARIOS;
+use arena_sim::Game;
+use arena_sim::LaneChange;
+use arena_sim::Style;
 
 /// All 12 runs, made once for every test of this file.
 fn runs() -> &'static Vec<(Record, Trace)> {
@@ -183,7 +183,7 @@ fn the_records_do_not_depend_on_the_order_of_vehicles_in_the_file() {
     let reversed = |n: usize| (0..n).rev().collect::<Vec<_>>();
     let rotated = |n: usize| (1..n).chain([0]).collect::<Vec<_>>();
     for scenario in PaperScenario::ALL {
-        let (_, _, text) = BUILTIN.iter().find(|(name, ..)| *name == scenario.file()).copied().unwrap();
+        let (_, _, text) = BUILTIN_SCENARIOS.iter().find(|(name, ..)| *name == scenario.file()).copied().unwrap();
         for order in [&reversed as &dyn Fn(usize) -> Vec<usize>, &rotated] {
             let options = PaperOptions { scenario_text: Some(permuted(text, order)), ..PaperOptions::default() };
             for style in Style::ALL {

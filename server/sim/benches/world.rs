@@ -5,13 +5,13 @@
 //!
 //! Run: `cargo bench -p arena-sim --bench world`
 
-use arena_sim::scenario::{BUILTIN, Scenario};
+use arena_sim::{BUILTIN_SCENARIOS, Scenario};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 
-fn world_of(vehicles: usize) -> arena_sim::world::World {
+fn world_of(vehicles: usize) -> arena_sim::World {
     let overrides = [
         // The default physics step (highway.toml itself runs at 1/30 s).
         ("sim.physics_dt".to_string(), toml::Value::Float(0.01)),
@@ -19,7 +19,7 @@ fn world_of(vehicles: usize) -> arena_sim::world::World {
         ("vehicle.ego_0.driver".to_string(), toml::Value::Table(toml::toml! { kind = "idm" })),
         ("road.sections".to_string(), toml::Value::Array(vec![toml::Value::Table(toml::toml! { length = 100000.0 })])),
     ];
-    let (_, file, text) = BUILTIN[2];
+    let (_, file, text) = BUILTIN_SCENARIOS[2];
     let scenario = Scenario::parse(file, text, &overrides).expect("highway.toml with overrides is valid");
     let mut world = scenario.build(1);
     world.advance(5.0); // past the start-up transient

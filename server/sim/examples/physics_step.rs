@@ -13,12 +13,12 @@
 //! 3. highway.toml itself for ten seeds x 40 s: crashes, cars off the road, non-finite states;
 //! 4. the cost: vehicle-substeps per simulated second of highway.toml.
 
-use arena_sim::dynamics::{
+use arena_sim::Status;
+use arena_sim::{BUILTIN_SCENARIOS, Scenario};
+use arena_sim::{
     LANE_CHANGE_BOUNDS, LANE_CHANGE_DURATION, RK4_CHECK_SPEEDS, Style, cruising_modes, lane_change_trajectory,
     rk4_growth,
 };
-use arena_sim::scenario::{BUILTIN, Scenario};
-use arena_sim::world::Status;
 
 /// Candidate physics steps (s); the ones that do not divide the control period are skipped.
 const CANDIDATES: [f64; 8] = [0.005, 0.01, 0.02, 0.025, 0.1 / 3.0, 0.04, 0.05, 0.1];
@@ -30,7 +30,8 @@ const REFERENCE_STEP: f64 = 0.001;
 /// highway.toml, at physics step `physics_dt` if given, with the learner's car driven by
 /// IDM + MOBIL if `idm_ego` (left to itself it holds 25 m/s into slower cars ahead).
 fn highway(physics_dt: Option<f64>, idm_ego: bool) -> Scenario {
-    let (_, file, text) = BUILTIN.iter().find(|(name, ..)| *name == "highway").expect("highway.toml is built in");
+    let (_, file, text) =
+        BUILTIN_SCENARIOS.iter().find(|(name, ..)| *name == "highway").expect("highway.toml is built in");
     let mut overrides: Vec<_> =
         physics_dt.map(|dt| ("sim.physics_dt".to_string(), toml::Value::Float(dt))).into_iter().collect();
     if idm_ego {

@@ -8,11 +8,33 @@
 //! `road` -> `dynamics` -> `scene` -> `traffic` / `gt` -> `world` -> `preset` -> `scenario`.
 #![warn(missing_docs)]
 
-pub mod dynamics;
-pub mod gt;
-pub mod preset;
-pub mod road;
-pub mod scenario;
-pub mod scene;
-pub mod traffic;
-pub mod world;
+mod dynamics;
+mod gt;
+mod preset;
+mod road;
+mod scenario;
+mod scene;
+mod traffic;
+mod world;
+
+// The surface, by the module that owns each item. What is not here stays inside: the
+// games, the field, the MPC's matrices, the integrator, IDM/MOBIL's internals.
+pub use dynamics::{
+    Command, DriverParams, LANE_CHANGE_BOUNDS, LANE_CHANGE_DURATION, LaneChangeBounds, LaneChangeResponse, LateralPath,
+    RK4_CHECK_SPEEDS, Style, VehicleParams, VehicleState, cruising_modes, lane_change_response, lane_change_trajectory,
+    rk4_growth,
+};
+pub use gt::{
+    AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, FieldParams, Game,
+    GameParams, GtDriver, GtParams, GtStep, InteractionParams, Mpc, MpcError, MpcParams, MpcSolution, PredictionParams,
+    StyleProfile, expert_decision, plan, plan_motion, stage_cost,
+};
+pub use preset::{BUILTIN_PRESETS, Preset, PresetError};
+pub use road::{LaneChange, LaneId, Pose, Road, Section};
+pub use scenario::{
+    ActionKind, BUILTIN_SCENARIOS, DriverSpec, Goal, GtTraffic, MAX_SCENARIO_DEPTH, RewardSpec, Scenario,
+    ScenarioError, ScenarioErrorKind, TrafficSpec, Variation, VehicleSpec, builtin_scenario,
+};
+pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
+pub use traffic::{IdmParams, speed_control};
+pub use world::{AgentCommand, Collision, Driver, LEARNER_SPEED_FACTOR, Vehicle, World, WorldParams};

@@ -68,49 +68,59 @@ impl fmt::Display for PresetError {
 
 impl std::error::Error for PresetError {}
 
-/// The built-in presets' names, for error messages and help.
-pub fn builtin_names() -> Vec<&'static str> {
-    BUILTIN_PRESETS.iter().map(|(name, _)| *name).collect()
-}
-
-/// Loads preset `name_or_file`: a built-in name, or a path to a `.toml` file (anything
-/// with a `/` or ending in `.toml`), relative to the working directory. For the command
-/// line only: scenario files, which clients may send, name built-in presets (`builtin`).
-pub fn load(name_or_file: &str) -> Result<Preset, PresetError> {
-    if name_or_file.contains('/') || name_or_file.ends_with(".toml") {
-        let fail = |message: String| PresetError { preset: name_or_file.to_string(), message };
-        let text = std::fs::read_to_string(name_or_file).map_err(|e| fail(format!("cannot read it: {e}")))?;
-        return parse(name_or_file, &text);
+impl Preset {
+    /// The built-in presets' names, for error messages and help.
+    pub fn builtin_names() -> Vec<&'static str> {
+        BUILTIN_PRESETS.iter().map(|(name, _)| *name).collect()
     }
-    builtin(name_or_file, ", or give a path to a .toml preset file")
-}
 
-/// Loads the built-in preset `name`; an unknown name's error lists them, then `hint`.
-pub fn builtin(name: &str, hint: &str) -> Result<Preset, PresetError> {
-    match BUILTIN_PRESETS.iter().find(|(builtin, _)| *builtin == name) {
-        Some((_, text)) => parse(name, text),
-        None => Err(PresetError {
-            preset: name.to_string(),
-            message: format!("no such built-in preset; choose one of {}{hint}", builtin_names().join(", ")),
-        }),
+    /// Loads preset `name_or_file`: a built-in name, or a path to a `.toml` file (anything
+    /// with a `/` or ending in `.toml`), relative to the working directory. For the command
+    /// line only: scenario files, which clients may send, name built-in presets (`builtin`).
+    pub fn load(name_or_file: &str) -> Result<Preset, PresetError> {
+        if name_or_file.contains('/') || name_or_file.ends_with(".toml") {
+            let fail = |message: String| PresetError { preset: name_or_file.to_string(), message };
+            let text = std::fs::read_to_string(name_or_file).map_err(|e| fail(format!("cannot read it: {e}")))?;
+            return Preset::parse(name_or_file, &text);
+        }
+        Preset::builtin(name_or_file, ", or give a path to a .toml preset file")
     }
-}
 
-/// Parses and validates preset text; `source` names it in errors.
-pub fn parse(source: &str, text: &str) -> Result<Preset, PresetError> {
-    let fail = |message: String| PresetError { preset: source.to_string(), message };
-    let file: PresetFile = toml::from_str(text).map_err(|e| fail(e.to_string().trim_end().to_string()))?;
-    let gt = gt_params(&file.gt).map_err(fail)?;
-    let scenario = file
-        .scenario
-        .iter()
-        .map(|(name, table)| (name.clone(), table.iter().map(|(k, v)| (k.clone(), v.clone())).collect()))
-        .collect();
-    Ok(Preset { name: file.name, description: file.description, gt, scenario })
+    /// Loads the built-in preset `name`; an unknown name's error lists them, then `hint`.
+    pub fn builtin(name: &str, hint: &str) -> Result<Preset, PresetError> {
+        match BUILTIN_PRESETS.iter().find(|(builtin, _)| *builtin == name) {
+            Some((_, text)) => Preset::parse(name, text),
+            None => Err(PresetError {
+                preset: name.to_string(),
+                message: format!("no such built-in preset; choose one of {}{hint}", Preset::builtin_names().join(", ")),
+            }),
+        }
+    }
+
+    /// Parses and validates preset text; `source` names it in errors.
+    pub fn parse(source: &str, text: &str) -> Result<Preset, PresetError> {
+        let fail = |message: String| PresetError { preset: source.to_string(), message };
+        let file: PresetFile = toml::from_str(text).map_err(|e| fail(e.to_string().trim_end().to_string()))?;
+        let gt = gt_params(&file.gt).map_err(fail)?;
+        let scenario = file
+            .scenario
+            .iter()
+            .map(|(name, table)| (name.clone(), table.iter().map(|(k, v)| (k.clone(), v.clone())).collect()))
+            .collect();
+        Ok(Preset { name: file.name, description: file.description, gt, scenario })
+    }
+
+    /// The `[gt]` table of a preset holding `params`: every leaf that differs from the
+    /// defaults, so a written preset says only what it changes.
+    pub fn changes_of(params: &GtParams) -> toml::Table {
+        let defaults = toml::Table::try_from(GtParams::default()).expect("GtParams serialises to TOML");
+        let ours = toml::Table::try_from(*params).expect("GtParams serialises to TOML");
+        diff(&defaults, &ours)
+    }
 }
 
 /// The defaults with `changes` laid over, checked key by key.
-pub fn gt_params(changes: &toml::Table) -> Result<GtParams, String> {
+fn gt_params(changes: &toml::Table) -> Result<GtParams, String> {
     let defaults = toml::Table::try_from(GtParams::default()).map_err(|e| e.to_string())?;
     let mut merged = defaults;
     lay_over(&mut merged, changes, "gt")?;
@@ -141,14 +151,6 @@ fn lay_over(base: &mut toml::Table, changes: &toml::Table, path: &str) -> Result
     Ok(())
 }
 
-/// The `[gt]` table of a preset holding `params`: every leaf that differs from the
-/// defaults, so a written preset says only what it changes.
-pub fn gt_changes(params: &GtParams) -> toml::Table {
-    let defaults = toml::Table::try_from(GtParams::default()).expect("GtParams serialises to TOML");
-    let ours = toml::Table::try_from(*params).expect("GtParams serialises to TOML");
-    diff(&defaults, &ours)
-}
-
 fn diff(base: &toml::Table, ours: &toml::Table) -> toml::Table {
     let mut out = toml::Table::new();
     for (key, value) in ours {
@@ -174,35 +176,35 @@ mod tests {
 
     #[test]
     fn every_builtin_preset_loads_and_default_is_the_defaults() {
-        for name in builtin_names() {
-            let preset = load(name).unwrap_or_else(|e| panic!("{e}"));
+        for name in Preset::builtin_names() {
+            let preset = Preset::load(name).unwrap_or_else(|e| panic!("{e}"));
             assert_eq!(preset.name, name, "a built-in preset's name is its key");
         }
-        assert_eq!(load("default").unwrap().gt, GtParams::default());
+        assert_eq!(Preset::load("default").unwrap().gt, GtParams::default());
     }
 
     #[test]
     fn a_preset_changes_only_what_it_names() {
         let text = "name = \"t\"\n[gt.decision.costs]\nkappa_ax = 5\n[gt.decision.prediction]\nsamples = 8\n";
-        let preset = parse("t", text).unwrap();
+        let preset = Preset::parse("t", text).unwrap();
         let mut expected = GtParams::default();
         expected.decision.costs.kappa_ax = 5.0;
         expected.decision.prediction.samples = 8;
         assert_eq!(preset.gt, expected);
-        let changes = gt_changes(&preset.gt);
+        let changes = Preset::changes_of(&preset.gt);
         assert_eq!(gt_params(&changes).unwrap(), expected, "the written changes read back");
         assert_eq!(changes.len(), 1, "only [decision] differs: {changes:?}");
     }
 
     #[test]
     fn a_bad_preset_is_named_with_the_choices() {
-        let unknown = load("no-such-preset").unwrap_err().to_string();
+        let unknown = Preset::load("no-such-preset").unwrap_err().to_string();
         assert!(unknown.contains("'no-such-preset'") && unknown.contains("default, paper-fit"), "{unknown}");
-        let key = parse("t", "name = \"t\"\n[gt.decision.costs]\nkappa_x = 1.0\n").unwrap_err().to_string();
+        let key = Preset::parse("t", "name = \"t\"\n[gt.decision.costs]\nkappa_x = 1.0\n").unwrap_err().to_string();
         assert!(key.contains("gt.decision.costs.kappa_x") && key.contains("kappa_ax"), "{key}");
-        let missing = load("presets/missing.toml").unwrap_err().to_string();
+        let missing = Preset::load("presets/missing.toml").unwrap_err().to_string();
         assert!(missing.contains("presets/missing.toml") && missing.contains("cannot read"), "{missing}");
-        let negative = parse("t", "name = \"t\"\n[gt.decision.game]\nfollower_tolerance = -1\n").unwrap_err();
+        let negative = Preset::parse("t", "name = \"t\"\n[gt.decision.game]\nfollower_tolerance = -1\n").unwrap_err();
         assert!(negative.to_string().contains("follower_tolerance"), "{negative}");
     }
 
@@ -214,7 +216,7 @@ mod tests {
             ("prediction", "horizon", "1e9", "horizon"),
         ] {
             let text = format!("name = \"t\"\n[gt.decision.{section}]\n{key} = {value}\n");
-            let refused = parse("t", &text).unwrap_err().to_string();
+            let refused = Preset::parse("t", &text).unwrap_err().to_string();
             assert!(refused.contains(named) && refused.contains("at most"), "{refused}");
         }
     }

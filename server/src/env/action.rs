@@ -11,11 +11,11 @@
 
 use arena_protocol::{Action, ActionType, DType, ErrorCode, MetaAction, Space};
 
-use arena_sim::dynamics::Command;
-use arena_sim::gt::Decision;
-use arena_sim::road::{LaneChange, LaneId, Road};
-use arena_sim::traffic::{IdmParams, speed_control};
-use arena_sim::world::{AgentCommand, VehicleId, World};
+use arena_sim::Command;
+use arena_sim::Decision;
+use arena_sim::{AgentCommand, VehicleId, World};
+use arena_sim::{IdmParams, speed_control};
+use arena_sim::{LaneChange, LaneId, Road};
 
 /// Which meta actions can act now, indexed by `MetaAction::code`.
 pub type MetaMask = [bool; MetaAction::ALL.len()];

@@ -7,10 +7,10 @@
 
 use arena_protocol::EndReason;
 
-use arena_sim::gt::CostComponents;
-use arena_sim::road::LaneId;
-use arena_sim::scenario::Goal;
-use arena_sim::world::{Status, VehicleId, World};
+use arena_sim::CostComponents;
+use arena_sim::Goal;
+use arena_sim::LaneId;
+use arena_sim::{Status, VehicleId, World};
 
 use super::simulate::StepCost;
 

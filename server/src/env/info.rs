@@ -7,8 +7,8 @@
 use arena_protocol::info::{self as key, DIAGNOSTIC_COUNTS};
 use arena_protocol::{ActionType, EndReason, Info, InfoValue, MetaAction};
 
-use arena_sim::gt::Decision;
-use arena_sim::world::{Driver, Status, VehicleId, World};
+use arena_sim::Decision;
+use arena_sim::{Driver, Status, VehicleId, World};
 
 use super::action;
 use super::episode::Figures;
@@ -97,7 +97,7 @@ pub fn expert(
     world: &mut World,
     id: VehicleId,
     kind: ActionType,
-    memory: &mut arena_sim::gt::GtDriver,
+    memory: &mut arena_sim::GtDriver,
 ) -> (Decision, InfoValue) {
     match kind {
         ActionType::Meta => {

@@ -26,11 +26,11 @@ use arena_protocol::{
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use arena_sim::dynamics::Style;
-use arena_sim::gt::{Game, GtDriver};
-use arena_sim::scenario::{ActionKind, DriverSpec, Scenario};
-use arena_sim::scene::Role;
-use arena_sim::world::{Status, VehicleId, World};
+use arena_sim::Role;
+use arena_sim::Style;
+use arena_sim::{ActionKind, DriverSpec, Scenario};
+use arena_sim::{Game, GtDriver};
+use arena_sim::{Status, VehicleId, World};
 
 pub use observation::{KINEMATICS_FEATURES, KINEMATICS_VEHICLES};
 

@@ -10,11 +10,11 @@
 use arena_protocol::{ActionType, DType, Observation, ObservationKind, Space, Tensor, TensorData};
 
 use super::action::meta_mask;
-use arena_sim::dynamics::VehicleState;
-use arena_sim::road::Road;
-use arena_sim::scenario::Scenario;
-use arena_sim::scene::{Scene, VehicleId};
-use arena_sim::world::World;
+use arena_sim::Road;
+use arena_sim::Scenario;
+use arena_sim::VehicleState;
+use arena_sim::World;
+use arena_sim::{Scene, VehicleId};
 
 /// Rows of the kinematics matrix: the agent and its nearest neighbours.
 pub const KINEMATICS_VEHICLES: usize = 5;

@@ -6,7 +6,7 @@
 
 use arena_protocol::Frame;
 
-use arena_sim::world::{Driver, Status, Vehicle, VehicleId, World};
+use arena_sim::{Driver, Status, Vehicle, VehicleId, World};
 
 /// Metres of road shown ahead of and behind the focus vehicle in `rgb`.
 const RGB_HALF_WINDOW: f64 = 60.0;
@@ -91,7 +91,7 @@ pub(super) fn is_marking(world: &World, s: f64, d: f64, pixel: f64) -> bool {
     }
     // The boundary between lane `left` (above) and `left + 1` (below).
     let left = -boundary as i64 - 1;
-    let open = |lane: i64| road.has_lane(lane) && s <= road.lane_end(arena_sim::road::LaneId(lane as u32));
+    let open = |lane: i64| road.has_lane(lane) && s <= road.lane_end(arena_sim::LaneId(lane as u32));
     match (open(left), open(left + 1)) {
         (true, true) => (s / 3.0).rem_euclid(2.0) < 1.0,
         (true, false) | (false, true) => true,
@@ -209,7 +209,7 @@ pub fn ansi(world: &World, focus: Option<VehicleId>) -> String {
     let s_at = |col: usize| s0 + (col as f64 - ANSI_HALF_WIDTH as f64) * ANSI_METRES_PER_CHAR;
     let mut rows: Vec<Vec<char>> = (0..world.road().lane_count())
         .map(|lane| {
-            let end = world.road().lane_end(arena_sim::road::LaneId(lane as u32));
+            let end = world.road().lane_end(arena_sim::LaneId(lane as u32));
             (0..columns).map(|col| if s_at(col) > end { ' ' } else { '.' }).collect()
         })
         .collect();

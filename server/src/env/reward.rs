@@ -8,7 +8,7 @@
 //! with a crash returns less than any without). The step's cost comes from the simulate
 //! phase (`simulate::StepCost`).
 
-use arena_sim::scenario::RewardSpec;
+use arena_sim::RewardSpec;
 
 use super::simulate::StepCost;
 

@@ -2,8 +2,8 @@
 //! each agent's cost (eq. 9-14) sampled at the end of every control period it drives, so
 //! the reward and the infos read the step's mean cost without another pass.
 
-use arena_sim::gt::CostComponents;
-use arena_sim::world::{Status, VehicleId, World};
+use arena_sim::CostComponents;
+use arena_sim::{Status, VehicleId, World};
 
 /// The cost of one agent over one env step, sampled at the end of each control period
 /// it was driving.

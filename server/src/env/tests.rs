@@ -1,6 +1,6 @@
 use super::*;
 use arena_protocol::{Info, InfoValue, MetaAction, OptionValue};
-use arena_sim::scenario::builtin;
+use arena_sim::builtin_scenario;
 
 const NO_OPTIONS: &ResetOptions = &ResetOptions { overrides: Vec::new() };
 
@@ -10,7 +10,7 @@ fn overriding(pairs: &[(&str, OptionValue)]) -> ResetOptions {
 }
 
 fn env(name: &str, options: CreateOptions) -> Env {
-    let (_, file, text) = arena_sim::scenario::BUILTIN.into_iter().find(|(n, ..)| *n == name).unwrap();
+    let (_, file, text) = arena_sim::BUILTIN_SCENARIOS.into_iter().find(|(n, ..)| *n == name).unwrap();
     Env::from_text(file, text, &options, 1).unwrap()
 }
 
@@ -145,7 +145,7 @@ fn bad_actions_are_refused_without_stepping() {
     assert_eq!(env.world().unwrap(), &before);
 
     let mut continuous = super::Env::new(
-        builtin("merge").unwrap().unwrap(),
+        builtin_scenario("merge").unwrap().unwrap(),
         &CreateOptions { action_type: Some(ActionType::Continuous), ..CreateOptions::default() },
         1,
     )
@@ -181,7 +181,7 @@ fn reward_maps_the_cost_into_the_unit_interval_and_a_crash_earns_minus_the_episo
     env.reset(Some(0), NO_OPTIONS).unwrap();
     let step = &env.step(&[]).unwrap()[0];
     let Some(&InfoValue::F64(cost)) = info(step, "cost") else { panic!("no cost in {:?}", step.info) };
-    let scale = arena_sim::scenario::RewardSpec::DEFAULT_COST_SCALE;
+    let scale = arena_sim::RewardSpec::DEFAULT_COST_SCALE;
     assert!(cost > 0.0 && step.reward > 0.0 && step.reward <= 1.0);
     // EC drives about 20 m/s of the 25 it aims for: 0.8 of J_0 / (J_0 + J).
     let Some(&InfoValue::F64(speed)) = info(step, "speed") else { panic!() };
@@ -190,7 +190,7 @@ fn reward_maps_the_cost_into_the_unit_interval_and_a_crash_earns_minus_the_episo
     assert_eq!(step.info.end_reason(), Some(EndReason::Running), "until the step an agent leaves");
     // Full throttle into a slow car ahead in the same lane crashes.
     let options = CreateOptions { action_type: Some(ActionType::Continuous), ..CreateOptions::default() };
-    let mut env = super::Env::new(builtin("merge").unwrap().unwrap(), &options, 1).unwrap();
+    let mut env = super::Env::new(builtin_scenario("merge").unwrap().unwrap(), &options, 1).unwrap();
     let slow_car_ahead = overriding(&[
         ("vehicle.ac.lane", OptionValue::Int(1)),
         ("vehicle.ac.s", OptionValue::Float(80.0)),
@@ -305,7 +305,7 @@ fn expert_infos_say_what_the_built_in_av_would_do() {
             _ => assert!(speed_actions.map(|a| i64::from(a.code())).contains(&action), "{action}"),
         }
     }
-    let plain = super::Env::new(builtin("merge").unwrap().unwrap(), &CreateOptions::default(), 1)
+    let plain = super::Env::new(builtin_scenario("merge").unwrap().unwrap(), &CreateOptions::default(), 1)
         .unwrap()
         .reset(Some(0), NO_OPTIONS)
         .unwrap();
@@ -315,7 +315,7 @@ fn expert_infos_say_what_the_built_in_av_would_do() {
 #[test]
 fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one() {
     use rand::{RngExt, SeedableRng};
-    for (name, ..) in arena_sim::scenario::BUILTIN {
+    for (name, ..) in arena_sim::BUILTIN_SCENARIOS {
         for action_type in [ActionType::Meta, ActionType::Continuous] {
             let options = CreateOptions { action_type: Some(action_type), ..CreateOptions::default() };
             let mut env = env(name, options);
@@ -384,7 +384,7 @@ fn a_randomised_scenario_repeats_an_episode_bit_for_bit_for_its_seed_and_varies_
 fn a_render_size_whose_frames_could_not_travel_is_refused_at_creation() {
     let create = |size| {
         Env::new(
-            builtin("merge").unwrap().unwrap(),
+            builtin_scenario("merge").unwrap().unwrap(),
             &CreateOptions { render_size: Some(size), ..CreateOptions::default() },
             1,
         )
@@ -552,12 +552,12 @@ mod schema {
         /// `info::SCHEMA`, and hold no NaN.
         #[test]
         fn infos_keep_one_schema_from_reset_to_the_last_step(
-            scenario in 0usize..arena_sim::scenario::BUILTIN.len(),
+            scenario in 0usize..arena_sim::BUILTIN_SCENARIOS.len(),
             option in 0usize..4,
             seed in 0u64..1000,
             actions in proptest::collection::vec(0u32..5, 40),
         ) {
-            let name = arena_sim::scenario::BUILTIN[scenario].0;
+            let name = arena_sim::BUILTIN_SCENARIOS[scenario].0;
             let continuous = option == 2;
             let options = CreateOptions {
                 max_cycles: Some(40),

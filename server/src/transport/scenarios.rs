@@ -1,7 +1,7 @@
 //! The scenarios a server creates envs from: the built-in ones and a folder of the
 //! operator's, each by the name its file declares, checked once at start.
 
-use arena_sim::scenario::{BUILTIN, Scenario};
+use arena_sim::{BUILTIN_SCENARIOS, Scenario};
 
 /// Scenario texts the server can create envs from, by name.
 #[derive(Debug, Clone, Default)]
@@ -15,8 +15,10 @@ impl Scenarios {
     /// be read, a file that does not load, or two files of one name are an error that
     /// names the file and what is wrong.
     pub fn load(dir: Option<&std::path::Path>) -> Result<Scenarios, String> {
-        let mut entries: Vec<(String, String, String)> =
-            BUILTIN.iter().map(|(name, file, text)| (name.to_string(), file.to_string(), text.to_string())).collect();
+        let mut entries: Vec<(String, String, String)> = BUILTIN_SCENARIOS
+            .iter()
+            .map(|(name, file, text)| (name.to_string(), file.to_string(), text.to_string()))
+            .collect();
         let Some(dir) = dir else { return Ok(Scenarios { entries }) };
         let listing =
             std::fs::read_dir(dir).map_err(|e| format!("cannot read the scenario folder {}: {e}", dir.display()))?;

@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand};
 
 mod bench;
 mod eval;
+mod paper;
 mod play;
 mod record;
 mod soak;
@@ -35,10 +36,10 @@ enum Command {
     /// Step an env with a built-in policy and watch it as text in the terminal.
     Play(play::PlayArgs),
     /// Reproduce the paper's Scenario A and B tables and plots, in process.
-    Paper(arena_paper::report::PaperArgs),
+    Paper(paper::PaperArgs),
     /// Fit the constants the paper leaves open to its Tables IV and VI (seeded particle
     /// swarm), print every cell ours | paper, and write the fit as a parameter preset.
-    Calibrate(arena_paper::calibrate::CalibrateArgs),
+    Calibrate(paper::CalibrateArgs),
 }
 
 /// A client on `flags` and the server it found: within the connect timeout, or an error
@@ -75,7 +76,7 @@ fn main() -> anyhow::Result<()> {
         Command::Play(args) => play::run(args),
         Command::Record(args) => record::run(args),
         Command::Soak(args) => soak::run(args),
-        Command::Paper(args) => arena_paper::report::run(args),
-        Command::Calibrate(args) => arena_paper::calibrate::run(args),
+        Command::Paper(args) => paper::run_paper(args),
+        Command::Calibrate(args) => paper::run_calibrate(args),
     }
 }

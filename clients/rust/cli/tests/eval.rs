@@ -10,8 +10,8 @@ mod common;
 use common::{Harness, serve};
 
 use arena_paper::{PaperOptions, PaperScenario};
-use arena_sim::dynamics::Style;
-use arena_sim::gt::Game;
+use arena_sim::Game;
+use arena_sim::Style;
 
 /// A fresh folder for one run's output, removed when the test ends (passed or not).
 struct OutDir(PathBuf);

@@ -47,16 +47,6 @@ impl Fleet {
         self.len = 0;
     }
 
-    /// Number of vehicles.
-    pub fn len(&self) -> usize {
-        self.len
-    }
-
-    /// Whether there are none.
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-
     /// Adds a vehicle to step with `stepper` (every vehicle of a fleet steps by the same
     /// dt) under `command` on a lane of `curvature`. `key` names the stepper: a slot
     /// whose last vehicle had the same key keeps its constants, so a caller gives each
@@ -204,7 +194,7 @@ mod tests {
     }
 
     fn bits(fleet: &Fleet) -> Vec<[u64; STATES]> {
-        (0..fleet.len()).map(|i| fleet.state(i).to_array().map(f64::to_bits)).collect()
+        (0..fleet.len).map(|i| fleet.state(i).to_array().map(f64::to_bits)).collect()
     }
 
     #[test]
@@ -255,7 +245,7 @@ mod tests {
         let (stepper, state, command, curvature) = alone[5];
         fleet.push(5, &stepper, &state, command, curvature);
         fleet.step();
-        assert_eq!(fleet.len(), 1);
+        assert_eq!(fleet.len, 1);
         assert_eq!(fleet.state(0), stepper.step(&state, command, curvature));
     }
 }

@@ -88,8 +88,9 @@ pub(super) fn step_lanes<const N: usize>(
     next
 }
 
-/// Advances a vehicle by one physics step with the driver model closing the loop.
-#[inline]
+/// Advances a vehicle by one physics step with the driver model closing the loop:
+/// `Fleet` does this for the world; tests step one vehicle.
+#[cfg(test)]
 pub fn step(
     state: &VehicleState,
     command: Command,

@@ -25,16 +25,21 @@ mod physics_step;
 mod state;
 
 pub use fleet::Fleet;
-pub use integrate::{Derivative, Stepper, rk4, step};
-pub use linear::{Discretisation, Linearisation, linearise};
-pub use model::{derivative, fixed_steer_derivative};
+pub use integrate::Stepper;
+#[cfg(test)]
+pub(crate) use integrate::{rk4, step};
+pub use linear::linearise;
+#[cfg(test)]
+use model::{derivative, fixed_steer_derivative};
 pub use params::{DriverParams, Style, VehicleParams};
 pub use path::{LANE_CHANGE_DURATION, LateralPath};
 pub use physics_step::{
     LANE_CHANGE_BOUNDS, LaneChangeBounds, LaneChangeResponse, RK4_CHECK_SPEEDS, cruising_modes, lane_change_response,
     lane_change_trajectory, rk4_growth,
 };
-pub use state::{Command, INPUTS, STATES, VehicleState};
+#[cfg(test)]
+use state::INPUTS;
+pub use state::{Command, STATES, VehicleState};
 
 #[cfg(test)]
 mod tests;

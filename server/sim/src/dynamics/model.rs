@@ -197,6 +197,7 @@ pub(super) fn derivative_at<const N: usize>(x: &StateLanes<N>, inputs: &Inputs<N
 }
 
 /// The bicycle alone (eq. 2–6) with the steering angle held where it is.
+#[cfg(test)]
 pub fn fixed_steer_derivative(x: &Vector8, accel: f64, curvature: f64, vehicle: &VehicleParams) -> Vector8 {
     let model = Model::new(vehicle, &DriverParams::default());
     let inputs = Inputs::one(Command { accel, preview: 0.0 }, curvature);

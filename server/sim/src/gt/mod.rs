@@ -13,10 +13,10 @@
 //! 22–29), `driver` (reading the scene, the follower role, the fallback).
 //!
 //! ```
-//! use arena_sim::gt::{Game, expert_decision, stage_cost};
-//! use arena_sim::scenario::builtin;
+//! use arena_sim::{Game, expert_decision, stage_cost};
+//! use arena_sim::builtin_scenario;
 //!
-//! let mut world = builtin("overtake").unwrap().unwrap().build(0);
+//! let mut world = builtin_scenario("overtake").unwrap().unwrap().build(0);
 //! let ec = world.find("ec_0").unwrap();
 //! let params = world.gt_params(ec);
 //! let decision = expert_decision(world.scene(), ec, Game::Stackelberg, &params);
@@ -37,10 +37,12 @@ mod styles;
 // questions the env asks. The games, the field and the MPC stay inside.
 pub use costs::{CostComponents, CostParams};
 pub use driver::{
-    Diagnostics, GtDriver, GtParams, GtStep, InteractionParams, decide, expert_decision, plan, plan_motion, stage_cost,
+    Diagnostics, GtDriver, GtParams, GtStep, InteractionParams, expert_decision, plan, plan_motion, stage_cost,
 };
 pub use field::FieldParams;
-pub use games::{AdjacentLateral, Decision, DecisionParams, Game, GameParams, Needs};
+#[cfg(test)]
+use games::Needs;
+pub use games::{AdjacentLateral, Decision, DecisionParams, Game, GameParams};
 pub use mpc::{Mpc, MpcError, MpcParams, MpcSolution};
 pub use prediction::PredictionParams;
 pub use styles::{CostWeights, StyleProfile};

@@ -293,7 +293,7 @@ fn the_expert_of_a_gt_car_is_its_own_planned_decision_with_its_own_tolerance() {
     driver.insert("game".into(), "stackelberg".into());
     driver.insert("follower_tolerance".into(), 2.0.into());
     let overrides = vec![("vehicle.ec_0.driver".to_string(), toml::Value::Table(driver))];
-    let text = crate::scenario::BUILTIN[0].2;
+    let text = crate::scenario::BUILTIN_SCENARIOS[0].2;
     let mut world = crate::scenario::Scenario::parse("merge.toml", text, &overrides).unwrap().build(0);
     let ec = world.find("ec_0").unwrap();
     assert_eq!(world.gt_params(ec).decision.game.follower_tolerance, 2.0);

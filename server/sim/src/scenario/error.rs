@@ -4,7 +4,7 @@
 
 use std::fmt;
 
-use super::MAX_DEPTH;
+use super::MAX_SCENARIO_DEPTH;
 
 /// Occurs when a scenario cannot be loaded; `file` names it.
 #[derive(Debug, Clone, PartialEq)]
@@ -55,9 +55,9 @@ pub enum ScenarioErrorKind {
         /// What is wrong with it.
         message: String,
     },
-    /// Occurs when tables and arrays nest deeper than `MAX_DEPTH` (text or overrides).
+    /// Occurs when tables and arrays nest deeper than `MAX_SCENARIO_DEPTH` (text or overrides).
     TooDeep {
-        /// How deep they nest, as far as counted (`MAX_DEPTH` + 1 at most).
+        /// How deep they nest, as far as counted (`MAX_SCENARIO_DEPTH` + 1 at most).
         depth: usize,
     },
     /// Occurs when an override names a key that cannot be set.
@@ -90,7 +90,7 @@ impl fmt::Display for ScenarioError {
             ScenarioErrorKind::Invalid { key, message } => write!(f, "`{key}` {message}"),
             ScenarioErrorKind::BadOverride { key, message } => write!(f, "override `{key}`: {message}"),
             ScenarioErrorKind::TooDeep { depth } => {
-                write!(f, "tables and arrays nest {depth} deep; a scenario nests at most {MAX_DEPTH}")
+                write!(f, "tables and arrays nest {depth} deep; a scenario nests at most {MAX_SCENARIO_DEPTH}")
             }
         }
     }

@@ -24,7 +24,7 @@ mod validate;
 mod vary;
 
 pub use error::{ScenarioError, ScenarioErrorKind};
-pub use overrides::MAX_DEPTH;
+pub use overrides::MAX_SCENARIO_DEPTH;
 pub use spec::{ActionKind, DriverSpec, Goal, GtTraffic, RewardSpec, TrafficSpec, VehicleSpec};
 pub use vary::Variation;
 
@@ -33,7 +33,7 @@ use overrides::{apply_override, nesting};
 
 /// The scenario files shipped in `scenarios/`, compiled in so the server needs no
 /// files beside it: (name, file name, text).
-pub const BUILTIN: [(&str, &str, &str); 8] = [
+pub const BUILTIN_SCENARIOS: [(&str, &str, &str); 8] = [
     ("merge", "merge.toml", include_str!("../../../../scenarios/merge.toml")),
     ("overtake", "overtake.toml", include_str!("../../../../scenarios/overtake.toml")),
     ("highway", "highway.toml", include_str!("../../../../scenarios/highway.toml")),
@@ -45,8 +45,8 @@ pub const BUILTIN: [(&str, &str, &str); 8] = [
 ];
 
 /// Loads a built-in scenario by name (`merge`, `overtake`, `highway`, ...).
-pub fn builtin(name: &str) -> Option<Result<Scenario, ScenarioError>> {
-    BUILTIN.iter().find(|(n, ..)| *n == name).map(|(_, file, text)| Scenario::parse(file, text, &[]))
+pub fn builtin_scenario(name: &str) -> Option<Result<Scenario, ScenarioError>> {
+    BUILTIN_SCENARIOS.iter().find(|(n, ..)| *n == name).map(|(_, file, text)| Scenario::parse(file, text, &[]))
 }
 
 /// A validated scenario.
@@ -97,7 +97,7 @@ impl Scenario {
             apply_override(&mut table, key, value.clone()).map_err(&fail)?;
         }
         let depth = nesting(&table);
-        if depth > MAX_DEPTH {
+        if depth > MAX_SCENARIO_DEPTH {
             return Err(fail(ScenarioErrorKind::TooDeep { depth }));
         }
         let raw: ScenarioFile = if overrides.is_empty() {

@@ -8,14 +8,14 @@ use super::ScenarioErrorKind;
 /// How deep a scenario's tables and arrays may nest, its text and overrides together (the
 /// shipped files nest 3 deep). Parsing, validating and dropping a TOML value recurse on
 /// its depth, and a scenario can come from a client.
-pub const MAX_DEPTH: usize = 16;
+pub const MAX_SCENARIO_DEPTH: usize = 16;
 
 /// Sets `key` (dotted; `vehicle.<name>.<field>` addresses a vehicle by name) to `value`.
 pub(super) fn apply_override(table: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), ScenarioErrorKind> {
     let bad = |message: String| ScenarioErrorKind::BadOverride { key: key.to_string(), message };
     let parts: Vec<&str> = key.split('.').collect();
-    if parts.len() > MAX_DEPTH {
-        return Err(bad(format!("it has {} parts; a scenario nests at most {MAX_DEPTH} deep", parts.len())));
+    if parts.len() > MAX_SCENARIO_DEPTH {
+        return Err(bad(format!("it has {} parts; a scenario nests at most {MAX_SCENARIO_DEPTH} deep", parts.len())));
     }
     if parts.iter().any(|part| part.is_empty()) {
         return Err(bad("every part of a dotted key must be non-empty".into()));
@@ -46,7 +46,7 @@ pub(super) fn apply_override(table: &mut toml::Table, key: &str, value: toml::Va
 }
 
 /// How deep `table`'s tables and arrays nest (a flat table is 1), counted without
-/// recursion and no further than `MAX_DEPTH` + 1.
+/// recursion and no further than `MAX_SCENARIO_DEPTH` + 1.
 pub(super) fn nesting(table: &toml::Table) -> usize {
     let mut deepest = 1;
     let mut pending: Vec<(&toml::Value, usize)> = table.values().map(|value| (value, 2)).collect();
@@ -57,7 +57,7 @@ pub(super) fn nesting(table: &toml::Table) -> usize {
             _ => continue,
         };
         deepest = deepest.max(depth);
-        if depth > MAX_DEPTH {
+        if depth > MAX_SCENARIO_DEPTH {
             break;
         }
         pending.extend(inner.map(|value| (value, depth + 1)));

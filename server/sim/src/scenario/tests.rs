@@ -39,22 +39,22 @@ fn with(replace: &str, by: &str) -> String {
 
 #[test]
 fn every_shipped_scenario_loads_and_builds() {
-    for (name, file, _) in BUILTIN {
-        let scenario = builtin(name).unwrap().unwrap_or_else(|e| panic!("{file}: {e}"));
+    for (name, file, _) in BUILTIN_SCENARIOS {
+        let scenario = builtin_scenario(name).unwrap().unwrap_or_else(|e| panic!("{file}: {e}"));
         assert_eq!(scenario.name, name);
         let learners = if name == "merge-duo" { 2 } else { 1 };
         assert_eq!(scenario.agents().count(), learners, "{file} has {learners} learner(s)");
         let world = scenario.build(7);
         assert!(world.vehicles().len() >= 2);
     }
-    let highway = builtin("highway").unwrap().unwrap();
+    let highway = builtin_scenario("highway").unwrap().unwrap();
     assert_eq!(highway.build(1).vehicles().len(), 51);
     assert_eq!((highway.step_dt, highway.max_cycles, highway.road.lane_count()), (1.0, 40, 4));
 }
 
 #[test]
 fn overtake_places_the_papers_cars_in_their_lanes() {
-    let overtake = builtin("overtake").unwrap().unwrap();
+    let overtake = builtin_scenario("overtake").unwrap().unwrap();
     let lanes: Vec<u32> = overtake.vehicles.iter().map(|v| v.lane.0).collect();
     assert_eq!(lanes, [1, 1, 0, 2]); // ec, lc middle; ac1 left; ac2 right
     for spec in &overtake.vehicles {
@@ -145,8 +145,8 @@ fn every_shipped_physics_step_keeps_lane_changes_within_bounds_and_rk4_stable() 
     // bounds at 10 ms; highway.toml runs at 1/30 s, highway-gt.toml at 20 ms.
     use crate::dynamics::{LANE_CHANGE_BOUNDS, RK4_CHECK_SPEEDS, Style, rk4_growth};
     let bounds = LANE_CHANGE_BOUNDS;
-    for (name, ..) in BUILTIN {
-        let dt = builtin(name).unwrap().unwrap().world.physics_dt;
+    for (name, ..) in BUILTIN_SCENARIOS {
+        let dt = builtin_scenario(name).unwrap().unwrap().world.physics_dt;
         for style in Style::ALL {
             for speed in bounds.speeds {
                 for left in [true, false] {
@@ -207,26 +207,31 @@ fn kind_of(text: &str, overrides: &[(String, toml::Value)]) -> ScenarioErrorKind
 fn nesting_past_max_depth_is_refused_in_text_keys_and_values_and_not_below() {
     // The file itself is depth 1, so n arrays inside it nest 1 + n deep.
     let deep_text = |n: usize| format!("deep = {}1{}\n{GOOD}", "[".repeat(n), "]".repeat(n));
-    assert!(matches!(kind_of(&deep_text(MAX_DEPTH - 1), &[]), ScenarioErrorKind::Syntax(e) if e.contains("deep")));
-    assert_eq!(kind_of(&deep_text(MAX_DEPTH), &[]), ScenarioErrorKind::TooDeep { depth: MAX_DEPTH + 1 });
+    assert!(
+        matches!(kind_of(&deep_text(MAX_SCENARIO_DEPTH - 1), &[]), ScenarioErrorKind::Syntax(e) if e.contains("deep"))
+    );
+    assert_eq!(
+        kind_of(&deep_text(MAX_SCENARIO_DEPTH), &[]),
+        ScenarioErrorKind::TooDeep { depth: MAX_SCENARIO_DEPTH + 1 }
+    );
     // Past toml's own recursion limit (80) the parser refuses it; no stack is at risk.
     assert!(matches!(kind_of(&deep_text(5000), &[]), ScenarioErrorKind::Syntax(_)));
 
     let key = |parts: usize| vec!["x"; parts].join(".");
     let one = |key: String, value: toml::Value| vec![(key, value)];
-    let below = kind_of(GOOD, &one(key(MAX_DEPTH), toml::Value::Integer(1)));
+    let below = kind_of(GOOD, &one(key(MAX_SCENARIO_DEPTH), toml::Value::Integer(1)));
     assert!(matches!(below, ScenarioErrorKind::Syntax(ref e) if e.contains('x')), "{below:?}");
-    let above = kind_of(GOOD, &one(key(MAX_DEPTH + 1), toml::Value::Integer(1)));
+    let above = kind_of(GOOD, &one(key(MAX_SCENARIO_DEPTH + 1), toml::Value::Integer(1)));
     assert!(matches!(above, ScenarioErrorKind::BadOverride { ref message, .. } if message.contains("17 parts")));
     // The key that overflowed the server's stack: refused before any table is made.
     let crash = kind_of(GOOD, &one(format!("{}a", "a.".repeat(15_000)), toml::Value::Integer(1)));
     assert!(matches!(crash, ScenarioErrorKind::BadOverride { ref message, .. } if message.contains("15001 parts")));
 
     // A value nests from its key's depth: `sim.x` is depth 2, so its arrays start at 3.
-    let below = kind_of(GOOD, &one("sim.x".into(), nested_arrays(MAX_DEPTH - 2)));
+    let below = kind_of(GOOD, &one("sim.x".into(), nested_arrays(MAX_SCENARIO_DEPTH - 2)));
     assert!(matches!(below, ScenarioErrorKind::Syntax(_)), "{below:?}");
-    let above = kind_of(GOOD, &one("sim.x".into(), nested_arrays(MAX_DEPTH - 1)));
-    assert_eq!(above, ScenarioErrorKind::TooDeep { depth: MAX_DEPTH + 1 });
+    let above = kind_of(GOOD, &one("sim.x".into(), nested_arrays(MAX_SCENARIO_DEPTH - 1)));
+    assert_eq!(above, ScenarioErrorKind::TooDeep { depth: MAX_SCENARIO_DEPTH + 1 });
 }
 
 #[test]
@@ -303,12 +308,12 @@ fn a_gt_driver_takes_its_constants_from_a_preset_and_its_own_tolerance() {
 }
 
 fn arena_preset_gt(name: &str) -> GtParams {
-    crate::preset::load(name).unwrap().gt
+    crate::preset::Preset::load(name).unwrap().gt
 }
 
 #[test]
 fn every_shipped_file_declares_the_name_it_is_served_under_and_has_a_learner() {
-    for (name, file, text) in BUILTIN {
+    for (name, file, text) in BUILTIN_SCENARIOS {
         let scenario = Scenario::parse(file, text, &[]).unwrap();
         assert_eq!(scenario.name, name, "{file}");
         assert_eq!(format!("{name}.toml"), file);
@@ -319,7 +324,7 @@ fn every_shipped_file_declares_the_name_it_is_served_under_and_has_a_learner() {
 #[test]
 fn a_varied_scenario_draws_each_episode_from_the_seed() {
     use rand::SeedableRng;
-    let scenario = builtin("merge-random").unwrap().unwrap();
+    let scenario = builtin_scenario("merge-random").unwrap().unwrap();
     assert_eq!(scenario.vary.len(), 6);
     let draw = |seed| {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
@@ -333,7 +338,7 @@ fn a_varied_scenario_draws_each_episode_from_the_seed() {
         assert!((30.0..75.0).contains(&ac.s) && (12.0..22.0).contains(&ac.speed), "{ac:?}");
     }
     // The paper's own files draw nothing: every episode is the scenario itself.
-    let merge = builtin("merge").unwrap().unwrap();
+    let merge = builtin_scenario("merge").unwrap().unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     assert_eq!(merge.episode(&mut rng, &[]).unwrap(), merge);
 }
@@ -361,10 +366,10 @@ mod fuzz {
 
         #[test]
         fn mutated_scenario_files_load_or_are_refused(
-            which in 0usize..BUILTIN.len(),
+            which in 0usize..BUILTIN_SCENARIOS.len(),
             edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<char>(), 0u8..3), 1..8),
         ) {
-            let mut text: Vec<char> = BUILTIN[which].2.chars().collect();
+            let mut text: Vec<char> = BUILTIN_SCENARIOS[which].2.chars().collect();
             for (at, c, kind) in edits {
                 let i = at.index(text.len().max(1)).min(text.len());
                 match kind {

@@ -208,7 +208,9 @@ impl VehicleFile {
                     Some(name) => {
                         let hint =
                             "(a scenario names built-in presets only; a preset file is for `arena paper --params`)";
-                        crate::preset::builtin(name, hint).map_err(|e| invalid("driver.params", e.to_string()))?.gt
+                        crate::preset::Preset::builtin(name, hint)
+                            .map_err(|e| invalid("driver.params", e.to_string()))?
+                            .gt
                     }
                     None => GtParams::default(),
                 };

@@ -1,5 +1,5 @@
 use super::*;
-use crate::scenario::{Scenario, builtin};
+use crate::scenario::{Scenario, builtin_scenario};
 
 fn state_bits(world: &World) -> Vec<u64> {
     world.vehicles().iter().flat_map(|v| v.state.to_array()).map(f64::to_bits).collect()
@@ -7,7 +7,7 @@ fn state_bits(world: &World) -> Vec<u64> {
 
 #[test]
 fn same_seed_same_bits_other_seed_differs() {
-    let scenario = builtin("highway").unwrap().unwrap();
+    let scenario = builtin_scenario("highway").unwrap().unwrap();
     let run = |seed| {
         let mut world = scenario.build(seed);
         for _ in 0..1000 {
@@ -23,7 +23,7 @@ fn same_seed_same_bits_other_seed_differs() {
 #[test]
 fn ten_minutes_of_dense_traffic_without_a_collision() {
     let overrides = [("vehicle.ego_0.driver".to_string(), toml::Value::Table(toml::toml! { kind = "idm" }))];
-    let text = crate::scenario::BUILTIN[2].2;
+    let text = crate::scenario::BUILTIN_SCENARIOS[2].2;
     let scenario = Scenario::parse("highway.toml", text, &overrides).unwrap();
     let mut world = scenario.build(11);
     let mut lane_changes = 0;
@@ -185,9 +185,9 @@ fn the_order_of_vehicles_in_a_file_changes_no_trajectory() {
     };
     type Overrides = Vec<(String, toml::Value)>;
     let mut cases: Vec<(&str, &str, Overrides)> =
-        crate::scenario::BUILTIN.iter().map(|(_, file, text)| (*file, *text, vec![])).collect();
-    cases.push(("merge.toml", crate::scenario::BUILTIN[0].2, paper_drivers(&["ac"])));
-    cases.push(("overtake.toml", crate::scenario::BUILTIN[1].2, paper_drivers(&["ac1", "ac2"])));
+        crate::scenario::BUILTIN_SCENARIOS.iter().map(|(_, file, text)| (*file, *text, vec![])).collect();
+    cases.push(("merge.toml", crate::scenario::BUILTIN_SCENARIOS[0].2, paper_drivers(&["ac"])));
+    cases.push(("overtake.toml", crate::scenario::BUILTIN_SCENARIOS[1].2, paper_drivers(&["ac1", "ac2"])));
     for (file, text, overrides) in &cases {
         let build = |text: &str| Scenario::parse(file, text, overrides).unwrap().build(5);
         let expected = trajectories(build(text), 1000);
@@ -207,7 +207,7 @@ fn a_stackelberg_follower_answers_its_leaders_decision_of_this_period() {
         ("vehicle.ec_0.driver".to_string(), gt_driver("leader")),
         ("vehicle.ac.driver".to_string(), gt_driver("follower")),
     ];
-    let text = crate::scenario::BUILTIN[0].2;
+    let text = crate::scenario::BUILTIN_SCENARIOS[0].2;
     let mut world = Scenario::parse("merge.toml", text, &overrides).unwrap().build(0);
     world.tick();
     let (ec, ac) = (world.find("ec_0").unwrap(), world.find("ac").unwrap());
@@ -220,7 +220,7 @@ fn a_stackelberg_follower_answers_its_leaders_decision_of_this_period() {
 
 #[test]
 fn game_theoretic_cars_deciding_on_several_threads_give_the_same_bits_as_in_turn() {
-    let text = crate::scenario::BUILTIN.iter().find(|(name, ..)| *name == "highway-gt").unwrap().2;
+    let text = crate::scenario::BUILTIN_SCENARIOS.iter().find(|(name, ..)| *name == "highway-gt").unwrap().2;
     let scenario = Scenario::parse("highway-gt.toml", text, &[]).unwrap();
     let run = |threads| {
         let mut world = scenario.build(9);

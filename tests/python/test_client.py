@@ -1,6 +1,7 @@
 """What the package promises beyond PettingZoo's and Gymnasium's checks: clear errors
 on bad input that never hang past the timeout, fresh arrays, idempotent close, timing."""
 
+import inspect
 import pathlib
 import pickle
 import signal
@@ -256,12 +257,14 @@ def test_launch_server_reports_a_missing_binary():
 
 
 def test_connection_defaults_are_the_protocol_crates():
-    from highway_arena import _core, batch, parallel
+    from highway_arena import _connection, _core
 
     assert (_core.DEFAULT_CONNECT, _core.DEFAULT_PREFIX, _core.DEFAULT_TIMEOUT) == ("tcp/127.0.0.1:7447", "arena", 10.0)
-    assert parallel.DEFAULT_CONNECT is _core.DEFAULT_CONNECT
-    assert parallel.DEFAULT_TIMEOUT is _core.DEFAULT_TIMEOUT
-    assert batch.DEFAULT_TIMEOUT is _core.DEFAULT_TIMEOUT
+    assert _connection.DEFAULT_CONNECT is _core.DEFAULT_CONNECT
+    assert _connection.DEFAULT_TIMEOUT is _core.DEFAULT_TIMEOUT
+    defaults = highway_arena.CONNECTION_KEYWORDS
+    assert defaults["prefix"] is _core.DEFAULT_PREFIX and defaults["timeout"] is _core.DEFAULT_TIMEOUT
+    assert defaults["connect_timeout"] is _core.DEFAULT_CONNECT_TIMEOUT
 
 
 def test_reset_options_set_scenario_keys_for_one_episode_and_unknown_keys_are_refused():
@@ -382,6 +385,105 @@ def test_an_unknown_keyword_is_refused_naming_it_and_the_valid_ones():
     env = highway_arena.parallel_env("merge", vehicle__ec_0__speed=23.0, overrides={"vehicle.ac.speed": 16.0})
     _, infos = env.reset(seed=0)
     assert infos["ec_0"]["speed"] == 23.0
+    env.close()
+
+
+# Every public constructor, with what it needs besides keywords; the name its errors give;
+# one keyword of its own its list of valid keywords must show.
+CONSTRUCTORS = {
+    "parallel_env": (lambda tmp, **kw: highway_arena.parallel_env("merge", **kw), "parallel_env", "render_mode"),
+    "env": (lambda tmp, **kw: highway_arena.env("merge", **kw), "parallel_env", "max_cycles"),
+    "gym_env": (lambda tmp, **kw: highway_arena.gym_env("merge", **kw), "gym_env", "agent"),
+    "batch_env": (lambda tmp, **kw: highway_arena.batch_env("merge", num_envs=2, **kw), "batch_env", "num_envs"),
+    "vector_env": (
+        lambda tmp, **kw: highway_arena.vector_env("merge", num_envs=2, **kw),
+        "vector_env",
+        "autoreset_mode",
+    ),
+    "ParallelEnv": (lambda tmp, **kw: highway_arena.ParallelEnv("merge", **kw), "parallel_env", "seed"),
+    "GymEnv": (lambda tmp, **kw: highway_arena.GymEnv("merge", **kw), "gym_env", "agent"),
+    "BatchEnv": (lambda tmp, **kw: highway_arena.BatchEnv("merge", num_envs=2, **kw), "batch_env", "scenario_text"),
+    "VectorEnv": (lambda tmp, **kw: highway_arena.VectorEnv("merge", num_envs=2, **kw), "vector_env", "agent"),
+    "record": (
+        lambda tmp, **kw: highway_arena.record("merge", 1, path=tmp, progress=False, **kw),
+        "record",
+        "episodes",
+    ),
+}
+ENVS = [name for name in CONSTRUCTORS if name != "record"]
+
+
+@pytest.mark.parametrize("name", CONSTRUCTORS)
+def test_every_constructor_refuses_an_unknown_keyword_before_connecting_naming_it_and_the_valid_ones(name, tmp_path):
+    build, reported, own = CONSTRUCTORS[name]
+    # Nothing listens at this endpoint: the keyword is refused before any connection.
+    with pytest.raises(TypeError) as raised:
+        build(tmp_path, connect="tcp/127.0.0.1:1", connect_timeout=0.3, expret=0.5)
+    message = str(raised.value)
+    assert message.startswith(f"{reported}() got unexpected keyword argument(s) ['expret']; its keywords are "), message
+    valid = message.split("its keywords are ")[1].split(";")[0].split(", ")
+    assert own in valid and set(highway_arena.CONNECTION_KEYWORDS) <= set(valid), valid
+
+
+@pytest.mark.parametrize("name", ["batch_env", "vector_env"])
+def test_batch_and_vector_envs_take_both_override_forms(name):
+    build, _, _ = CONSTRUCTORS[name]
+    envs = build(None, vehicle__ec_0__speed=23.0, overrides={"vehicle.ac.speed": 16.0})
+    if name == "batch_env":
+        speeds = [infos["ec_0"]["speed"] for _, infos in envs.reset(seed=0)]
+    else:
+        speeds = list(envs.reset(seed=0)[1]["speed"])
+    assert speeds == [23.0, 23.0]
+    envs.close()
+
+
+# One wrong value for each connection keyword, and the error that shows the value reached
+# the connection (had the keyword been dropped, the env would connect to the suite's server).
+WRONG_CONNECTION = {
+    "connect": ("tcp/127.0.0.1:1", highway_arena.ServerNotFoundError, r"^no arena-server answered at tcp/127.0.0.1:1 "),
+    "prefix": ("nowhere", highway_arena.ServerNotFoundError, r"\(prefix 'nowhere'\)"),
+    "timeout": (0, ValueError, r"^timeout must be a positive number of seconds"),
+    "retries": (-1, ValueError, r"^retries must be a whole number"),
+    "connect_timeout": (-1, ValueError, r"^connect_timeout must be a positive number of seconds"),
+    "zenoh_config": ("nowhere.json5", ValueError, r"^zenoh_config nowhere.json5 is not a file"),
+    "mode": ("relay", ValueError, r"^mode must be peer, client or router"),
+}
+
+
+def test_every_connection_keyword_has_a_wrong_value_case():
+    assert list(WRONG_CONNECTION) == list(highway_arena.CONNECTION_KEYWORDS)
+
+
+@pytest.mark.parametrize("keyword", WRONG_CONNECTION)
+@pytest.mark.parametrize("name", CONSTRUCTORS)
+def test_every_constructor_passes_each_connection_keyword_on(name, keyword, tmp_path):
+    build, _, _ = CONSTRUCTORS[name]
+    value, error, message = WRONG_CONNECTION[keyword]
+    quick = {} if keyword == "connect_timeout" else {"connect_timeout": 0.3}
+    with pytest.raises(error, match=message):
+        build(tmp_path, **{**quick, keyword: value})
+
+
+@pytest.mark.parametrize("name", ENVS)
+def test_every_env_constructor_takes_all_the_connection_keywords_and_shows_them(name, server, tmp_path):
+    build, _, _ = CONSTRUCTORS[name]
+    parameters = inspect.signature(getattr(highway_arena, name)).parameters
+    for keyword, default in highway_arena.CONNECTION_KEYWORDS.items():
+        assert parameters[keyword].default == default, (name, keyword)
+    config = tmp_path / "peer.json5"
+    config.write_text("{}\n")
+    settings = dict(
+        connect=server.endpoint,
+        prefix=highway_arena.CONNECTION_KEYWORDS["prefix"],
+        timeout=5.0,
+        retries=1,
+        connect_timeout=2.0,
+        zenoh_config=config,
+        mode="peer",
+    )
+    assert set(settings) == set(highway_arena.CONNECTION_KEYWORDS)
+    env = build(tmp_path, **settings)
+    env.reset(seed=0)
     env.close()
 
 

@@ -19,7 +19,10 @@ last step), and the ``episode_*`` figures are zero until ``info["episode_done"]`
 Meta actions are indices into ``META_ACTIONS``.
 
 ``connect`` defaults to $HIGHWAY_ARENA_CONNECT, else tcp/127.0.0.1:7447 (where
-``arena-server`` listens by default); ``launch_server()`` starts one for you.
+``arena-server`` listens by default); ``launch_server()`` starts one for you. Every
+constructor takes the connection keywords ``CONNECTION_KEYWORDS`` (with their defaults;
+``help(highway_arena.parallel_env)`` says what each means), and refuses an unknown
+keyword with a TypeError naming it and the valid ones.
 """
 
 import gymnasium
@@ -36,16 +39,19 @@ from ._errors import (
     ServerGoneError,
     ServerNotFoundError,
 )
+from . import _connection
+from ._connection import CONNECTION_KEYWORDS, default_connect
 from ._core import END_REASONS, INFO_KEYS, META_ACTIONS
 from ._server import LocalServer, find_server_binary, launch_server, serving
 from .batch import BatchEnv
 from .datasets import record
 from .evaluation import Evaluation, evaluate
-from .parallel import ParallelEnv, default_connect
+from .parallel import ParallelEnv
 from .single import GymEnv
 from .vector import VectorEnv
 
 __all__ = [
+    "CONNECTION_KEYWORDS",
     "END_REASONS",
     "INFO_KEYS",
     "META_ACTIONS",
@@ -94,11 +100,13 @@ for _scenario in (
     )
 
 
+@_connection.takes_connection_keywords
 def parallel_env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwargs) -> ParallelEnv:
     """A ``pettingzoo.ParallelEnv`` of ``scenario`` on the server at ``connect``."""
     return ParallelEnv(scenario, connect=connect, render_mode=render_mode, max_cycles=max_cycles, **kwargs)
 
 
+@_connection.takes_connection_keywords
 def env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwargs):
     """The AEC version of ``parallel_env`` (PettingZoo's own ``parallel_to_aec``). Its
     ``dt`` is the simulated seconds of one cycle (every live agent acting once)."""
@@ -111,16 +119,19 @@ def env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwa
     return aec
 
 
+@_connection.takes_connection_keywords
 def gym_env(scenario="highway", agent=None, connect=None, render_mode=None, **kwargs) -> GymEnv:
     """A ``gymnasium.Env`` for one learner of ``scenario``."""
     return GymEnv(scenario, agent=agent, connect=connect, render_mode=render_mode, **kwargs)
 
 
+@_connection.takes_connection_keywords
 def batch_env(scenario="highway", num_envs=8, connect=None, **kwargs) -> BatchEnv:
     """``num_envs`` envs stepped in one round trip per step."""
     return BatchEnv(scenario, num_envs=num_envs, connect=connect, **kwargs)
 
 
+@_connection.takes_connection_keywords
 def vector_env(scenario="highway", num_envs=8, agent=None, connect=None, **kwargs) -> VectorEnv:
     """A ``gymnasium.vector.VectorEnv`` of ``num_envs`` copies of one learner's view of
     ``scenario``, stepped in one round trip per step, with next-step autoreset."""

@@ -4,36 +4,32 @@ a ParallelEnv's give. Finished envs reset themselves."""
 
 from __future__ import annotations
 
-from . import _convert
+from . import _convert, _core
+from ._connection import ENV_OPTIONS, Connection, keywords, split, takes_connection_keywords
 from ._errors import InvalidActionError, translate, translated
-from . import _core
-from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_RETRIES, DEFAULT_TIMEOUT, Connection, reset_options
+from .parallel import reset_options, scenario_overrides
 
 
+@takes_connection_keywords
 class BatchEnv:
     """``num_envs`` copies of a scenario; env ``i`` is seeded ``seed + i`` and re-seeded
-    from its own stream when its episode ends."""
+    from its own stream when its episode ends. Takes ``parallel_env``'s env options
+    (``action_type``, ``observation``, ``expert``, ``policy``, ``max_cycles``, ...),
+    ``scenario_text``, scenario overrides (``overrides={"vehicle.ac.speed": 18.0}`` or
+    ``vehicle__ac__speed=18.0``) and the connection keywords (below); any other keyword
+    raises TypeError naming it and the valid ones."""
 
-    def __init__(
-        self,
-        scenario="highway",
-        num_envs=8,
-        connect=None,
-        prefix=DEFAULT_PREFIX,
-        timeout=DEFAULT_TIMEOUT,
-        connect_timeout=DEFAULT_CONNECT_TIMEOUT,
-        zenoh_config=None,
-        mode=None,
-        retries=DEFAULT_RETRIES,
-        **options,
-    ):
+    def __init__(self, scenario="highway", num_envs=8, connect=None, *, scenario_text=None, overrides=None, **kwargs):
+        connection, rest = split(kwargs, connect=connect)
+        options = {name: rest.pop(name) for name in ENV_OPTIONS if name in rest}
+        overrides = scenario_overrides(overrides, rest, "batch_env()", KEYWORDS)
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
-        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode, retries)
         self._envs = []
+        self._connection = Connection(**connection)
         try:
             for server in self._connection.place(num_envs):
-                self._envs.append(self._connection.create(scenario, server=server, **options))
+                self._envs.append(self._connection.create(scenario, scenario_text, overrides, server=server, **options))
             specs = self._envs[0].specs()
         except BaseException:
             self.close()
@@ -89,4 +85,10 @@ class BatchEnv:
         for env in self._envs:
             translated(env.close)()
         self._envs = []
-        self._connection.close()
+        if hasattr(self, "_connection"):
+            self._connection.close()
+
+
+# Every keyword BatchEnv (and batch_env) takes by name: its own, the env options and the
+# connection keywords.
+KEYWORDS = [*keywords(BatchEnv.__init__), *ENV_OPTIONS]

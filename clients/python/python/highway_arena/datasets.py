@@ -29,7 +29,10 @@ from dataclasses import dataclass
 import gymnasium
 import numpy as np
 from gymnasium.envs.registration import EnvSpec
+
 from . import _core
+from ._connection import keywords, split, takes_connection_keywords
+from .parallel import refuse_unknown
 
 STYLES = ("aggressive", "normal", "conservative")
 GAMES = ("nash", "stackelberg")
@@ -135,6 +138,7 @@ def _action(value, action_space):
     return np.asarray(value, dtype=action_space.dtype)
 
 
+@takes_connection_keywords
 def record(
     scenario: str,
     episodes: int,
@@ -152,6 +156,7 @@ def record(
     code_permalink: str | None = None,
     description: str | None = None,
     progress: bool | None = None,
+    **kwargs,
 ):
     """Rolls the built-in AV out in the learner's place on ``episodes`` seeded episodes
     of ``scenario`` and writes them as a Minari dataset; returns the
@@ -161,11 +166,14 @@ def record(
     style, Stackelberg). ``dataset_id``: Minari's id, by default
     ``highway_arena/<scenario>/gt-<style>-<game>-v0``. ``path``: the Minari datasets
     directory to write in (default $MINARI_DATASETS_PATH, else ~/.minari/datasets).
-    ``connect``: the server's endpoint for recording only (never stored). ``overrides``:
+    ``connect`` and the other connection keywords (below): how to reach the server, for
+    recording only (never stored). ``overrides``:
     scenario keys set at creation (stored in the env spec). ``author``, ``author_email``,
     ``code_permalink``, ``description``: Minari's metadata. ``progress``: a progress
     line on stderr (default: when stderr is a terminal).
     """
+    connection, unknown = split(kwargs, connect=connect)
+    refuse_unknown("record()", unknown, RECORD_KEYWORDS, overrides=False)
     import minari
     from minari.data_collector import EpisodeBuffer
 
@@ -186,7 +194,7 @@ def record(
         raise ValueError(f"action_type must be 'meta' or 'continuous', not {action_type!r}")
     dataset_id = dataset_id or f"highway_arena/{scenario}/{parsed.name}-v0"
 
-    probe = GymEnv(scenario, agent=agent, connect=connect, action_type=action_type, max_cycles=max_cycles)
+    probe = GymEnv(scenario, agent=agent, action_type=action_type, max_cycles=max_cycles, **connection)
     learner = probe.agent
     probe.close()
     overrides = dict(overrides or {})
@@ -200,7 +208,7 @@ def record(
         "max_cycles": max_cycles,
         "overrides": overrides or None,
     }
-    env = GymEnv(scenario, connect=connect, **{**options, "overrides": overrides})
+    env = GymEnv(scenario, **{**options, "overrides": overrides}, **connection)
     # The dataset's env_spec: the registered id and creation options, no endpoint.
     env.spec = env_spec(scenario, **options)
 
@@ -262,6 +270,10 @@ def record(
     finally:
         env.close()
     return dataset
+
+
+# Every keyword record takes, connection keywords included.
+RECORD_KEYWORDS = keywords(record)
 
 
 def rollout(env, policy, episodes: int, seed: int = 0) -> dict:

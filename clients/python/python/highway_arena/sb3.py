@@ -11,6 +11,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env import VecEnv
 
+from ._connection import takes_connection_keywords
 from .vector import VectorEnv
 
 
@@ -74,6 +75,7 @@ class SB3VecEnv(VecEnv):
         return [False for _ in self._get_indices(indices)]
 
 
+@takes_connection_keywords
 def vec_env(scenario="highway", num_envs=8, **kwargs) -> SB3VecEnv:
     """An SB3 VecEnv of ``num_envs`` copies of ``scenario`` (``vector_env``'s options)."""
     return SB3VecEnv(VectorEnv(scenario, num_envs=num_envs, autoreset_mode=AutoresetMode.SAME_STEP, **kwargs))

@@ -6,17 +6,22 @@ from __future__ import annotations
 import gymnasium
 from gymnasium.envs.registration import EnvSpec
 
-from .parallel import ParallelEnv
+from . import parallel
+from ._connection import takes_connection_keywords
+from .parallel import ParallelEnv, refuse_unknown
 
 
+@takes_connection_keywords
 class GymEnv(gymnasium.Env):
-    """One agent of a scenario as a ``gymnasium.Env``. Takes ParallelEnv's arguments,
-    plus ``agent`` (default: the scenario's first learner)."""
+    """One agent of a scenario as a ``gymnasium.Env``. Takes ParallelEnv's arguments
+    (the connection keywords among them, below), plus ``agent`` (default: the scenario's
+    first learner); any other keyword raises TypeError naming it and the valid ones."""
 
     # Read by gymnasium.make before an instance exists; instances add render_fps.
     metadata = {"render_modes": ["human", "rgb_array", "ansi"]}
 
     def __init__(self, scenario="highway", agent=None, render_mode=None, **kwargs):
+        refuse_unknown("gym_env()", kwargs, KEYWORDS)
         # A spec lets gymnasium.make (and check_env's render checks) build siblings.
         self.spec = EnvSpec(
             id=f"highway_arena/{scenario}-v0",
@@ -65,3 +70,7 @@ class GymEnv(gymnasium.Env):
     def close(self):
         self._parallel.close()
         super().close()
+
+
+# Every keyword GymEnv (and gym_env) takes by name: its own and ParallelEnv's.
+KEYWORDS = ["scenario", "agent", "render_mode", *(k for k in parallel.KEYWORDS if k not in ("scenario", "render_mode"))]

@@ -14,15 +14,19 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
 from . import _convert, _core
+from ._connection import ENV_OPTIONS, Connection, keywords, split, takes_connection_keywords
 from ._errors import translate, translated
-from .parallel import DEFAULT_CONNECT_TIMEOUT, DEFAULT_PREFIX, DEFAULT_RETRIES, DEFAULT_TIMEOUT, Connection, reset_options
+from .parallel import reset_options, scenario_overrides
 
 
+@takes_connection_keywords
 class VectorEnv(gymnasium.vector.VectorEnv):
     """``num_envs`` copies of ``scenario`` for one learner (``agent``, default the first;
     other learners' vehicles are driven by IDM, as in ``gym_env``). Takes
-    ``parallel_env``'s options (``action_type``, ``observation``, ``expert``,
-    ``max_cycles``, ``overrides``, ``scenario_text``, ``timeout``, ...). ``reset(seed=s)``
+    ``parallel_env``'s env options (``action_type``, ``observation``, ``expert``,
+    ``max_cycles``, ...), ``scenario_text``, scenario overrides (``overrides=`` or
+    ``vehicle__ac__speed=18.0``), ``autoreset_mode`` and the connection keywords (below);
+    any other keyword raises TypeError naming it and the valid ones. ``reset(seed=s)``
     seeds sub-env ``i`` with ``s + i``; a list gives each its own seed."""
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -33,17 +37,15 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         num_envs=8,
         agent=None,
         connect=None,
-        prefix=DEFAULT_PREFIX,
-        timeout=DEFAULT_TIMEOUT,
-        connect_timeout=DEFAULT_CONNECT_TIMEOUT,
-        zenoh_config=None,
-        mode=None,
-        retries=DEFAULT_RETRIES,
+        *,
         scenario_text=None,
         overrides=None,
         autoreset_mode=AutoresetMode.NEXT_STEP,
-        **options,
+        **kwargs,
     ):
+        connection, rest = split(kwargs, connect=connect)
+        options = {name: rest.pop(name) for name in ENV_OPTIONS if name in rest}
+        overrides = scenario_overrides(overrides, rest, "vector_env()", KEYWORDS)
         autoreset_mode = AutoresetMode(autoreset_mode)
         if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
             raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, not {autoreset_mode}")
@@ -51,10 +53,9 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         if int(num_envs) < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
         self.num_envs = int(num_envs)
-        self._connection = Connection(connect, prefix, timeout, connect_timeout, zenoh_config, mode, retries)
         self._envs = []
+        self._connection = Connection(**connection)
         try:
-            overrides = dict(overrides or {})
             # Spread over every server found, by load; each env stays where it lands.
             servers = self._connection.place(self.num_envs)
             probe = self._connection.create(scenario, scenario_text, overrides, server=servers[0], **options)
@@ -149,8 +150,13 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         return [env.server for env in self._envs]
 
     def close_extras(self, **kwargs):
-        for env in self._envs:
+        for env in getattr(self, "_envs", []):
             translated(env.close)()
         self._envs = []
         if hasattr(self, "_connection"):
             self._connection.close()
+
+
+# Every keyword VectorEnv (and vector_env) takes by name: its own, the env options and the
+# connection keywords.
+KEYWORDS = [*keywords(VectorEnv.__init__), *ENV_OPTIONS]

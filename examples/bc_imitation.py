@@ -99,8 +99,11 @@ def main() -> None:
         imitation_policy = lambda observation: int(trainer.policy.predict(observation, deterministic=True)[0])  # noqa: E731
         summary("imitation BC", rollout(env, imitation_policy, args.eval_episodes, seed=1000))
         summary("highway_arena.bc", rollout(env, highway_arena.bc.fit(dataset, seed=0), args.eval_episodes, seed=1000))
-        summary("expert", rollout(env, "expert", args.eval_episodes, seed=1000))
         env.close()
+        # The AV the dataset recorded, driving in the server on the same seeds.
+        expert = dataset.recover_environment(connect=connect, policy="expert")
+        summary("expert", rollout(expert, None, args.eval_episodes, seed=1000))
+        expert.close()
 
     with tempfile.TemporaryDirectory() as scratch:
         path = args.path or scratch

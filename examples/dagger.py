@@ -86,8 +86,11 @@ def main() -> None:
             result = rollout(env, policy, args.eval_episodes, seed=10_000)
             report(f"round {k}", result, len(labels), time.perf_counter() - started)
         started = time.perf_counter()
-        report("expert", rollout(env, "expert", args.eval_episodes, seed=10_000), len(labels), time.perf_counter() - started)
         env.close()
+        # The AV the labels came from, driving in the server on the same seeds.
+        expert = highway_arena.gym_env(args.scenario, connect=connect, policy="expert")
+        report("expert", rollout(expert, None, args.eval_episodes, seed=10_000), len(labels), time.perf_counter() - started)
+        expert.close()
 
     with tempfile.TemporaryDirectory() as scratch:
         path = args.path or scratch

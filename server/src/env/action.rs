@@ -114,6 +114,15 @@ pub fn meta_equivalent(
         .0
 }
 
+/// The target speed after meta action `action` from `target` (the lane's `limit` caps it).
+pub fn target_after(action: MetaAction, target: f64, limit: f64) -> f64 {
+    match action {
+        MetaAction::Faster => rung_above(target, limit),
+        MetaAction::Slower => rung_below(target),
+        MetaAction::LaneLeft | MetaAction::Idle | MetaAction::LaneRight => target,
+    }
+}
+
 /// Applies `action` (none: the default, idle or zero) to agent `id`; returns whether it
 /// acted (false for a meta action that can do nothing now).
 pub fn apply(world: &mut World, id: VehicleId, action: Option<&Action>, kind: ActionType) -> bool {
@@ -136,8 +145,9 @@ pub fn apply(world: &mut World, id: VehicleId, action: Option<&Action>, kind: Ac
             match choice {
                 MetaAction::LaneLeft => world.change_lane(id, LaneId(lane.0 - 1)),
                 MetaAction::LaneRight => world.change_lane(id, LaneId(lane.0 + 1)),
-                MetaAction::Faster => world.set_target_speed(id, rung_above(target, limit)),
-                MetaAction::Slower => world.set_target_speed(id, rung_below(target)),
+                MetaAction::Faster | MetaAction::Slower => {
+                    world.set_target_speed(id, target_after(choice, target, limit))
+                }
                 MetaAction::Idle => {}
             }
             true

@@ -88,36 +88,64 @@ pub fn add_expert(info: &mut Info, action: ActionType, expert: Option<(Decision,
     info.push(key::EXPERT_SIGMA, InfoValue::I64(i64::from(decision.lane_change.sigma())));
 }
 
-/// What the built-in AV would do in agent `id`'s place now, as the agent's own action:
-/// for a meta agent the meta action that best reproduces the AV's decision; for a
-/// continuous one the AV's whole command (its acceleration and the preview point its MPC
-/// plans, relative to the current lane), planned with the memory the AV would have had
-/// in this place, so replaying it drives as the AV drives.
+/// What the built-in AV does in agent `id`'s place next, as the agent's own action: for
+/// a meta agent the meta action that best reproduces the AV's decision; for a continuous
+/// one the AV's whole command (its acceleration and the preview point its MPC plans,
+/// relative to the current lane). When the AV drives the vehicle (the env's `policy`),
+/// that is the driver's own next action, planned from a copy of its memory: the world's
+/// next control period plans the same from the same scene, so the label is what it
+/// does; its meta labels are chosen against `ladder`, the target speed a learner playing
+/// them would have, which they then move (the AV keeps no such ladder). Otherwise it is
+/// planned with the memory the AV would have had in this place.
 pub fn expert(
     world: &mut World,
     id: VehicleId,
     kind: ActionType,
     memory: &mut arena_sim::GtDriver,
+    ladder: &mut f64,
 ) -> (Decision, InfoValue) {
+    if let Driver::Gt(driving) = &world.vehicle(id).driver {
+        *memory = (**driving).clone();
+        let command = world.expert_command(id, memory);
+        return match kind {
+            ActionType::Meta => {
+                let meta = meta_label(world, id, &memory.decision, *ladder);
+                let limit = world.road().speed_limit(world.vehicle(id).target_lane);
+                *ladder = action::target_after(meta, *ladder, limit);
+                (memory.decision, InfoValue::I64(i64::from(meta.code())))
+            }
+            ActionType::Continuous => (memory.decision, continuous_label(world, id, command)),
+        };
+    }
     match kind {
         ActionType::Meta => {
             let decision = world.expert_decision(id, memory.game);
-            let vehicle = world.vehicle(id);
-            let (lane, target, s) = (vehicle.target_lane, vehicle.target_speed, vehicle.state.s);
-            let mask = action::meta_mask(world.road(), lane, target, s);
-            let limit = world.road().speed_limit(lane);
-            let meta = action::meta_equivalent(&decision, mask, world.idm(), vehicle.state.vx, target, limit);
+            let meta = meta_label(world, id, &decision, world.vehicle(id).target_speed);
             (decision, InfoValue::I64(i64::from(meta.code())))
         }
         ActionType::Continuous => {
             let command = world.expert_command(id, memory);
-            let road = world.road();
-            let centre = road.lane_center(world.current_lane(id));
-            let accel = (command.accel / action::CONTINUOUS_ACCEL_SCALE).clamp(-1.0, 1.0);
-            let offset = ((command.preview - centre) / road.lane_width()).clamp(-1.0, 1.0);
-            (memory.decision, InfoValue::F64s(vec![accel, offset]))
+            (memory.decision, continuous_label(world, id, command))
         }
     }
+}
+
+/// The meta action that best reproduces `decision` for vehicle `id` now, aiming for `target`.
+fn meta_label(world: &World, id: VehicleId, decision: &Decision, target: f64) -> MetaAction {
+    let vehicle = world.vehicle(id);
+    let (lane, s) = (vehicle.target_lane, vehicle.state.s);
+    let mask = action::meta_mask(world.road(), lane, target, s);
+    let limit = world.road().speed_limit(lane);
+    action::meta_equivalent(decision, mask, world.idm(), vehicle.state.vx, target, limit)
+}
+
+/// `command` as a continuous action of vehicle `id` now: normalised, relative to its lane.
+fn continuous_label(world: &World, id: VehicleId, command: arena_sim::Command) -> InfoValue {
+    let road = world.road();
+    let centre = road.lane_center(world.current_lane(id));
+    let accel = (command.accel / action::CONTINUOUS_ACCEL_SCALE).clamp(-1.0, 1.0);
+    let offset = ((command.preview - centre) / road.lane_width()).clamp(-1.0, 1.0);
+    InfoValue::F64s(vec![accel, offset])
 }
 
 /// Every game-theoretic car's solver counts since the episode began, keyed

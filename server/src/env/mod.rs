@@ -49,6 +49,9 @@ struct AgentSlot {
     /// The speed its scenario has it aim for (m/s), fixed for the episode: the reward's
     /// yardstick of progress (an action that lowers the target speed does not lower it).
     aim: f64,
+    /// When the AV drives it (`policy`), the target speed a learner playing the meta
+    /// labels of `expert_action` would have (m/s); they are chosen against it.
+    ladder: f64,
 }
 
 /// A PettingZoo-Parallel env over one scenario.
@@ -113,6 +116,17 @@ impl Env {
         if max_cycles == 0 {
             return Err(error(ErrorCode::InvalidScenario, "max_cycles must be at least 1"));
         }
+        if let (Some(expert), Some(policy @ BuiltinPolicy::Gt { game: driving, .. })) = (options.expert, options.policy)
+            && expert != driving
+        {
+            return Err(error(
+                ErrorCode::InvalidScenario,
+                format!(
+                    "expert {expert} with policy {policy}: when the AV drives the learners, the expert keys are \
+                     that driver's own actions; ask for expert {driving} (or leave expert out)"
+                ),
+            ));
+        }
         let render_size = options.render_size.unwrap_or((300, 600));
         if !(16..=4096).contains(&render_size.0) || !(16..=4096).contains(&render_size.1) {
             return Err(error(
@@ -145,6 +159,7 @@ impl Env {
                 expert: None,
                 stats: None,
                 aim: 0.0,
+                ladder: 0.0,
             })
             .collect();
         Ok(Env {
@@ -237,6 +252,7 @@ impl Env {
                 self.expert.map(|game| Box::new(GtDriver::new(game, Role::Leader, world.gt_params(agent.vehicle))));
             agent.stats = Some(episode::EpisodeStats::start(&world, agent.vehicle));
             agent.aim = world.vehicle(agent.vehicle).target_speed;
+            agent.ladder = agent.aim;
         }
         let starts = (0..self.agents.len())
             .map(|i| {
@@ -374,7 +390,7 @@ impl Env {
         let mut info = info::info(world, agent.vehicle, outcome);
         if let Some(memory) = agent.expert.as_mut() {
             let running = outcome.end == EndReason::Running;
-            let expert = running.then(|| info::expert(world, agent.vehicle, agent.action, memory));
+            let expert = running.then(|| info::expert(world, agent.vehicle, agent.action, memory, &mut agent.ladder));
             info::add_expert(&mut info, agent.action, expert);
         }
         if self.diagnostics {

@@ -608,3 +608,61 @@ fn an_action_for_an_agent_that_has_finished_is_ignored_and_one_for_an_unknown_ag
     always.reset(Some(0), NO_OPTIONS).unwrap();
     assert_eq!(always.step(&meta("nobody", 1)).unwrap_err().code, ErrorCode::UnknownAgent);
 }
+
+/// The expert keys of a reply when the AV drives the learner: (`expert_accel`,
+/// `expert_sigma`, `expert_action`).
+fn labels(info: &Info) -> (f64, i64, InfoValue) {
+    let InfoValue::F64(accel) = figure(info, "expert_accel") else { panic!("{info:?}") };
+    let InfoValue::I64(sigma) = figure(info, "expert_sigma") else { panic!("{info:?}") };
+    (accel, sigma, figure(info, "expert_action"))
+}
+
+#[test]
+fn when_the_av_drives_the_expert_keys_are_what_it_does_next() {
+    let policy = arena_protocol::BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Nash };
+    for action_type in [ActionType::Continuous, ActionType::Meta] {
+        let options = CreateOptions {
+            policy: Some(policy),
+            expert: Some(arena_protocol::Game::Nash),
+            action_type: Some(action_type),
+            ..CreateOptions::default()
+        };
+        let mut env = env("merge-random", options);
+        let mut info = env.reset(Some(0), NO_OPTIONS).unwrap().remove(0).info;
+        let (mut steps, mut lane_changes) = (0, 0);
+        loop {
+            let (accel, sigma, action) = labels(&info);
+            let reply = env.step(&[]).unwrap().remove(0);
+            // One control period a step in merge-random: the period just run applied the
+            // command the reply before had labelled.
+            let world = env.world().unwrap();
+            let id = env.agents[0].vehicle;
+            let arena_sim::Driver::Gt(driving) = &world.vehicle(id).driver else { panic!("the AV drives ec_0") };
+            assert_eq!(driving.decision.accel.to_bits(), accel.to_bits(), "{action_type:?} step {steps}");
+            assert_eq!(i64::from(driving.decision.lane_change.sigma()), sigma, "{action_type:?} step {steps}");
+            if let (ActionType::Continuous, InfoValue::F64s(values)) = (action_type, &action) {
+                let applied = world.vehicle(id).command.accel / action::CONTINUOUS_ACCEL_SCALE;
+                assert_eq!(values[0].to_bits(), applied.clamp(-1.0, 1.0).to_bits(), "step {steps}");
+            }
+            lane_changes += i64::from(sigma != 0);
+            steps += 1;
+            if reply.terminated || reply.truncated {
+                break;
+            }
+            info = reply.info;
+        }
+        assert!(steps > 20 && lane_changes > 0, "{action_type:?}: {steps} steps, {lane_changes} with a lane change");
+    }
+}
+
+#[test]
+fn an_expert_that_is_not_the_driving_av_is_refused() {
+    let options = CreateOptions {
+        policy: Some(arena_protocol::BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Nash }),
+        expert: Some(arena_protocol::Game::Stackelberg),
+        ..CreateOptions::default()
+    };
+    let (_, file, text) = arena_sim::BUILTIN_SCENARIOS[0];
+    let Err(refused) = Env::from_text(file, text, &options, 1) else { panic!("two experts") };
+    assert!(refused.message.contains("expert nash"), "{}", refused.message);
+}

@@ -4,10 +4,13 @@
     dataset = highway_arena.record("merge-random", episodes=30, expert="gt:normal:stackelberg")
     dataset.recover_environment()          # gymnasium.make("highway_arena/merge-random-v0", ...)
 
-Episode ``i`` is reset with seed ``seed + i``; every step plays the ``expert_action``
-the server reports (the AV's decision in the learner's action space), so the dataset
-holds T + 1 observations and T actions, rewards, terminations and truncations per
-episode. The dataset's ``env_spec`` is the registered Gymnasium id
+Episode ``i`` is reset with seed ``seed + i`` and driven by the AV itself, in the
+server (the env's ``policy``, as ``arena eval`` and ``evaluate`` drive their
+``gt:<style>:<game>`` and ``expert`` rows): the episodes are the ones those rows score.
+Each step's action is the AV's own, in the learner's action space, as the server
+labels it (``expert_action``: for continuous actions its acceleration and preview
+point; for meta actions the meta action closest to its decision). The dataset holds
+T + 1 observations and T actions, rewards, terminations and truncations per episode. The dataset's ``env_spec`` is the registered Gymnasium id
 ``highway_arena/<scenario>-v0`` with the creation options the recording used (action
 type, expert game, style override, ``max_cycles``) and no endpoint: the recovered env
 connects where ``$HIGHWAY_ARENA_CONNECT`` (else tcp/127.0.0.1:7447) says.
@@ -58,6 +61,11 @@ class Expert:
     @property
     def name(self) -> str:
         return f"gt-{self.style or 'scenario'}-{self.game}"
+
+    @property
+    def policy(self) -> str:
+        """The server's name of this driver (the env's ``policy``, ``arena eval``'s row)."""
+        return f"gt:{self.style}:{self.game}" if self.style else "expert"
 
 
 def parse_expert(expert: str) -> Expert:
@@ -208,7 +216,8 @@ def record(
         "max_cycles": max_cycles,
         "overrides": overrides or None,
     }
-    env = GymEnv(scenario, **{**options, "overrides": overrides}, **connection)
+    # The AV drives in the server; the dataset's env (below) is the learner's, without it.
+    env = GymEnv(scenario, **{**options, "overrides": overrides}, policy=parsed.policy, **connection)
     # The dataset's env_spec: the registered id and creation options, no endpoint.
     env.spec = env_spec(scenario, **options)
 
@@ -222,7 +231,7 @@ def record(
             observations, actions, rewards, terminations, truncations = [observation], [], [], [], []
             while True:
                 action = _action(info["expert_action"], env.action_space)
-                observation, reward, terminated, truncated, info = env.step(action)
+                observation, reward, terminated, truncated, info = env.step(None)
                 observations.append(observation)
                 actions.append(action)
                 rewards.append(reward)
@@ -276,9 +285,16 @@ def record(
 RECORD_KEYWORDS = keywords(record)
 
 
+# rollout's name for replaying each step's ``expert_action`` as the learner's action: the
+# AV's labels played by the learner's own action space, a driver of its own (for meta
+# actions it is not the AV: ``evaluate``'s ``expert`` row is).
+EXPERT_REPLAY = "expert-replay"
+
+
 def rollout(env, policy, episodes: int, seed: int = 0) -> dict:
-    """Plays ``policy(observation) -> action`` (or, for ``policy="expert"``, each
-    step's ``expert_action`` info: the env needs ``expert=``) on ``episodes`` episodes
+    """Plays ``policy(observation) -> action`` (for ``policy="expert-replay"``, each
+    step's ``expert_action`` info: the env needs ``expert=``; for None, the driver of an
+    env made with ``policy=``, the AV for ``policy="expert"``) on ``episodes`` episodes
     of a Gymnasium ``env`` (episode ``i`` reset with ``seed + i``); returns ``returns``
     (one per episode), ``mean_return``, ``end_reasons``, ``failures`` (episodes ended
     by a collision, going off the road or running out of lane) and ``failure_rate``."""
@@ -287,7 +303,12 @@ def rollout(env, policy, episodes: int, seed: int = 0) -> dict:
         observation, info = env.reset(seed=int(seed) + i)
         total = 0.0
         while True:
-            action = info["expert_action"] if isinstance(policy, str) and policy == "expert" else policy(observation)
+            if policy is None:
+                action = None
+            elif isinstance(policy, str) and policy == EXPERT_REPLAY:
+                action = info["expert_action"]
+            else:
+                action = policy(observation)
             observation, reward, terminated, truncated, info = env.step(action)
             total += reward
             if terminated or truncated:

@@ -15,7 +15,8 @@ from .parallel import ParallelEnv, refuse_unknown
 class GymEnv(gymnasium.Env):
     """One agent of a scenario as a ``gymnasium.Env``. Takes ParallelEnv's arguments
     (the connection keywords among them, below), plus ``agent`` (default: the scenario's
-    first learner); any other keyword raises TypeError naming it and the valid ones."""
+    first learner); any other keyword raises TypeError naming it and the valid ones. With
+    ``policy`` the server drives the learner and ``step`` ignores its action (pass None)."""
 
     # Read by gymnasium.make before an instance exists; instances add render_fps.
     metadata = {"render_modes": ["human", "rgb_array", "ansi"]}
@@ -42,6 +43,7 @@ class GymEnv(gymnasium.Env):
             overrides.update({f"vehicle.{a}.driver": '{ kind = "idm" }' for a in others})
             probe = ParallelEnv(scenario, render_mode=render_mode, overrides=overrides, **kwargs)
         self._parallel = probe
+        self._driven = kwargs.get("policy") is not None
         self.agent = chosen
         self.render_mode = render_mode
         self.observation_space = probe.observation_space(chosen)
@@ -55,7 +57,9 @@ class GymEnv(gymnasium.Env):
         return observations[self.agent], infos[self.agent]
 
     def step(self, action):
-        observations, rewards, terminations, truncations, infos = self._parallel.step({self.agent: action})
+        # With ``policy`` the server drives the learner: its steps carry no action.
+        actions = {} if self._driven else {self.agent: action}
+        observations, rewards, terminations, truncations, infos = self._parallel.step(actions)
         return (
             observations[self.agent],
             float(rewards[self.agent]),

@@ -1,12 +1,13 @@
 //! `arena play`: steps an env on a server with a built-in policy (by default the
-//! game-theoretic AV's own choice in the learner's place) and redraws its ansi render
+//! game-theoretic AV itself, driving in the learner's place in the server, as `arena
+//! eval`'s `expert` row does) and redraws its ansi render
 //! in the terminal after every step; each episode ends with its return and why it ended.
 
 use std::time::{Duration, Instant};
 
 use arena_client::{Action, CreateOptions, Frame, RenderMode, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
-use arena_protocol::{Game, Info, InfoValue, MetaAction, Space};
+use arena_protocol::{BuiltinPolicy, Game, Info, InfoValue, MetaAction, Space};
 
 /// Arguments of `arena play`.
 #[derive(Debug, clap::Args)]
@@ -16,8 +17,10 @@ pub struct PlayArgs {
     /// Scenario on the server (merge, overtake, highway, ...).
     #[arg(long, default_value = "merge")]
     scenario: String,
-    /// How every agent acts: expert (what the game-theoretic AV would do in its place,
-    /// Stackelberg), idle (keep lane and target speed), faster, or random.
+    /// How every agent acts: expert (the game-theoretic AV drives in its place, in its
+    /// style, Stackelberg: `arena eval`'s expert), expert-replay (the agent plays the
+    /// AV's `expert_action` labels in its own action space: a driver of its own), idle
+    /// (keep lane and target speed), faster, or random.
     #[arg(long, value_enum, default_value_t = Policy::Expert)]
     policy: Policy,
     /// Seed of the episode (and of the random policy).
@@ -36,6 +39,7 @@ pub struct PlayArgs {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum Policy {
     Expert,
+    ExpertReplay,
     Idle,
     Faster,
     Random,
@@ -45,8 +49,10 @@ enum Policy {
 pub fn run(args: PlayArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.speed.is_finite() && args.speed >= 0.0, "--speed must be 0 or more, not {}", args.speed);
     let (client, server) = crate::connect(&args.connection)?;
-    let expert = (args.policy == Policy::Expert).then_some(Game::Stackelberg);
-    let options = CreateOptions { expert, ..CreateOptions::default() };
+    let expert = (args.policy == Policy::ExpertReplay).then_some(Game::Stackelberg);
+    let driven = args.policy == Policy::Expert;
+    let policy = driven.then_some(BuiltinPolicy::Gt { style: None, game: Game::Stackelberg });
+    let options = CreateOptions { expert, policy, ..CreateOptions::default() };
     let mut env = client.create_env(&server, ScenarioSource::Named(args.scenario.clone()), options)?;
     let specs = env.specs().clone();
     let mut random = args.seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
@@ -59,7 +65,8 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
         let mut cycle = 0;
         while !live.is_empty() {
             let started = Instant::now();
-            let actions = live
+            let actions = if driven { Vec::new() } else { live.clone() };
+            let actions = actions
                 .iter()
                 .map(|agent| {
                     let space = specs.action_spaces.iter().find(|(a, _)| a == agent).map(|(_, s)| s);
@@ -110,14 +117,16 @@ fn choose(policy: Policy, space: Option<&Space>, info: Option<&Info>, state: &mu
     let draw = (*state >> 33) as f64 / (1u64 << 31) as f64;
     let expert = info.and_then(|info| info.get(arena_protocol::info::EXPERT_ACTION));
     match (policy, expert) {
-        (Policy::Expert, Some(InfoValue::I64(action))) => return Action::Meta(*action as u32),
-        (Policy::Expert, Some(InfoValue::F64s(values))) if values.len() == 2 => {
+        (Policy::ExpertReplay, Some(InfoValue::I64(action))) => return Action::Meta(*action as u32),
+        (Policy::ExpertReplay, Some(InfoValue::F64s(values))) if values.len() == 2 => {
             return Action::Continuous([values[0] as f32, values[1] as f32]);
         }
         _ => {}
     }
     match (policy, space) {
-        (Policy::Idle | Policy::Expert, Some(Space::Box { .. })) => Action::Continuous([0.0, 0.0]),
+        (Policy::Idle | Policy::Expert | Policy::ExpertReplay, Some(Space::Box { .. })) => {
+            Action::Continuous([0.0, 0.0])
+        }
         (Policy::Faster, Some(Space::Box { high, .. })) => Action::Continuous([high[0] / 2.0, 0.0]),
         (Policy::Random, Some(Space::Box { low, high, .. })) => {
             Action::Continuous([low[0] + (high[0] - low[0]) * draw as f32, 0.0])
@@ -127,6 +136,6 @@ fn choose(policy: Policy, space: Option<&Space>, info: Option<&Info>, state: &mu
             Action::Meta((draw * f64::from(count)) as u32 % count)
         }
         (Policy::Faster, _) => Action::Meta(MetaAction::Faster.code()),
-        (Policy::Idle | Policy::Expert, _) => Action::Meta(MetaAction::Idle.code()),
+        (Policy::Idle | Policy::Expert | Policy::ExpertReplay, _) => Action::Meta(MetaAction::Idle.code()),
     }
 }

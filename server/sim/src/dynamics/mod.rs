@@ -31,8 +31,8 @@ pub use model::{derivative, fixed_steer_derivative};
 pub use params::{DriverParams, Style, VehicleParams};
 pub use path::{LANE_CHANGE_DURATION, LateralPath};
 pub use physics_step::{
-    LANE_CHANGE_BOUNDS, LaneChangeBounds, LaneChangeResponse, RK4_CHECK_SPEEDS, cruising_modes, lane_change_response,
-    lane_change_trajectory, rk4_growth,
+    LANE_CHANGE_BOUNDS, LATERAL_STATES, LaneChangeBounds, LaneChangeResponse, RK4_CHECK_SPEEDS, cruising_modes,
+    lane_change_response, lane_change_trajectory, lateral_modes, rk4_growth,
 };
 pub use state::{Command, INPUTS, STATES, VehicleState};
 

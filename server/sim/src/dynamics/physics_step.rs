@@ -16,22 +16,42 @@ use super::state::{Command, STATES, Vector8, VehicleState};
 /// learners' top speed on a 30 m/s lane (36).
 pub const RK4_CHECK_SPEEDS: [f64; 14] = [0.5, 0.9, 1.0, 1.1, 1.5, 2.0, 3.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 36.0];
 
-/// The modes (eigenvalues, 1/s) of the closed loop of eq. (7)-(8), driver and bicycle,
-/// about a car of `style` cruising straight at `speed` on a straight lane. The Jacobian is
-/// taken by central differences of `derivative`, so it includes the low-speed guard and
-/// the tyre forces' fade below it (which `linearise` leaves out).
-pub fn cruising_modes(style: Style, speed: f64) -> Vec<nalgebra::Complex<f64>> {
-    let (vehicle, driver) = (VehicleParams::default(), DriverParams::for_style(style));
+/// The Jacobian of the closed loop of eq. (7)-(8), driver and bicycle, about a car with
+/// `driver` cruising straight at `speed` on a straight lane, by central differences of
+/// `derivative`: it includes the low-speed guard and the tyre forces' fade below it
+/// (which `linearise` leaves out).
+pub(super) fn cruising_jacobian(driver: &DriverParams, speed: f64) -> SMatrix<f64, STATES, STATES> {
+    let vehicle = VehicleParams::default();
     let x0 = VehicleState::cruising(0.0, 0.0, speed).to_array();
-    let jacobian = SMatrix::<f64, STATES, STATES>::from_fn(|i, j| {
+    SMatrix::<f64, STATES, STATES>::from_fn(|i, j| {
         let h = 1e-7 * x0[j].abs().max(1.0);
         let (mut plus, mut minus) = (x0, x0);
         plus[j] += h;
         minus[j] -= h;
-        let f = |x: &Vector8| derivative(x, Command::default(), 0.0, &vehicle, &driver)[i];
+        let f = |x: &Vector8| derivative(x, Command::default(), 0.0, &vehicle, driver)[i];
         (f(&plus) - f(&minus)) / (2.0 * h)
-    });
-    jacobian.complex_eigenvalues().iter().copied().collect()
+    })
+}
+
+/// The modes (eigenvalues, 1/s) of the closed loop of eq. (7)-(8), driver and bicycle,
+/// about a car of `style` cruising straight at `speed` on a straight lane
+/// (`cruising_jacobian`).
+pub fn cruising_modes(style: Style, speed: f64) -> Vec<nalgebra::Complex<f64>> {
+    cruising_jacobian(&DriverParams::for_style(style), speed).complex_eigenvalues().iter().copied().collect()
+}
+
+/// The lateral states of x: v_y, r, heading, d, steer, steer rate (indices into eq. 8's x).
+/// About straight cruising at zero acceleration they do not depend on v_x or s, so the
+/// closed loop's modes are these six and the two integrators of v_x and s (both 0).
+pub const LATERAL_STATES: [usize; 6] = [1, 2, 3, 5, 6, 7];
+
+/// The six lateral modes (eigenvalues, 1/s) of the closed loop about a car with `driver`
+/// cruising straight at `speed`: those of `cruising_jacobian`'s `LATERAL_STATES` block
+/// (docs/parameters.md, "K_s"; `examples/stability.rs` prints them).
+pub fn lateral_modes(driver: &DriverParams, speed: f64) -> Vec<nalgebra::Complex<f64>> {
+    let jacobian = cruising_jacobian(driver, speed);
+    let lateral = SMatrix::<f64, 6, 6>::from_fn(|i, j| jacobian[(LATERAL_STATES[i], LATERAL_STATES[j])]);
+    lateral.complex_eigenvalues().iter().copied().collect()
 }
 
 /// How much more one RK4 step of `dt` amplifies the closed loop's modes at `speed` than

@@ -1,116 +1,168 @@
-//! The stability study of docs/parameters.md ("K_s"): the lateral modes of the closed loop
-//! of eq. (1)-(8), driver and bicycle, about a car cruising straight at 1-40 m/s
-//! (`dynamics::lateral_modes`; the integrators of s and v_x left out).
+//! The K_s study of docs/parameters.md ("K_s"): the lateral modes of the closed loop of
+//! eq. (1)-(8), driver and bicycle, about a car cruising straight at 1-40 m/s
+//! (`dynamics::lateral_modes`; the integrators of s and v_x left out), and the lane change
+//! of `dynamics::LANE_CHANGE_BOUNDS`, as K_s varies.
 //! `cargo run --release -p arena-sim --example stability`
 //!
 //! It prints:
-//! 1. for the K_s schedule of `DriverParams::steering_ratio_at` (params.rs), each style's largest Re lambda
-//!    over 1-40 m/s (every 0.5 m/s), where it is reached, and the value at a few speeds;
-//! 2. at each of a few speeds, the window of K_s in which every style's lateral modes have
-//!    Re lambda <= -0.02 1/s (issue 23's bound), that window times v_x^2, and the K_s of
-//!    schedule and of issue 23's, K_0 v_ref / v_x;
-//! 3. the largest Re lambda per style under K_0 v_ref / v_x, for comparison.
+//! 1. for the drivers of params.rs, each style's largest Re lambda over 1-40 m/s (every
+//!    0.5 m/s), where it is reached, and its value at a few speeds;
+//! 2. at each lane-change speed, per style, the window of K_s in which the lateral modes
+//!    keep Re lambda <= -0.02 1/s (issue 23's bound) and the one in which the lane change
+//!    keeps the bounds (settling, overshoot; both directions);
+//! 3. for schedules K_s = K_0 (v_ref / v_x)^p (p = 1, the issue's; params.rs' p; 2), per
+//!    style, the K_0 that keep the bound at every speed of 1-40 m/s, the K_0 that keep
+//!    every lane change within bounds, both, and params.rs' K_0.
+//!
+//! A K_s is tried by scaling a driver's K_0 so that its schedule gives that K_s at the
+//! speed in question: about straight cruising only K_s there enters the Jacobian (its
+//! slope in v_x multiplies the preview error, zero there), and a lane change at constant
+//! speed keeps v_x within millimetres per second of it.
 
-use arena_sim::dynamics::{DriverParams, Style, lateral_modes};
+use arena_sim::dynamics::{DriverParams, LANE_CHANGE_BOUNDS, Style, lateral_modes};
 
 /// Issue 23's bound on every lateral mode's real part (1/s).
 const BOUND: f64 = -0.02;
-/// The speeds scanned for the largest Re lambda: 1 to 40 m/s every 0.5 m/s.
-fn speeds() -> impl Iterator<Item = f64> {
-    (2..=80).map(|k| k as f64 * 0.5)
+/// The physics step of the lane changes (s), as `examples/lane_change.rs`.
+const DT: f64 = 0.01;
+
+/// The speeds of the bound: 1 to 40 m/s every 0.5 m/s.
+fn speeds() -> Vec<f64> {
+    (2..=80).map(|k| k as f64 * 0.5).collect()
 }
-/// The speeds at which the K_s window is printed (m/s).
-const WINDOW_SPEEDS: [f64; 14] = [1.0, 1.5, 2.0, 3.0, 5.0, 7.5, 10.0, 15.0, 20.0, 25.0, 30.0, 33.0, 36.0, 40.0];
 
 /// The largest real part of `driver`'s lateral modes at `speed` (1/s).
 fn max_re(driver: &DriverParams, speed: f64) -> f64 {
     lateral_modes(driver, speed).iter().map(|l| l.re).fold(f64::MIN, f64::max)
 }
 
-/// The driver of `style` with its K_0 scaled so that K_s at `speed` is `ks`. About straight
-/// cruising only K_s at that speed enters the Jacobian (its slope in v_x multiplies the
-/// preview error, zero there), so this is the closed loop of any schedule with that K_s.
+/// The driver of `style` with its K_0 scaled so that K_s at `speed` is `ks`.
 fn with_ratio(style: Style, speed: f64, ks: f64) -> DriverParams {
     let mut driver = DriverParams::for_style(style);
     driver.steering_ratio *= ks / driver.steering_ratio_at(speed);
     driver
 }
 
-/// Whether every style's lateral modes keep within `BOUND` with K_s = `ks` at `speed`.
-fn holds(speed: f64, ks: f64) -> bool {
-    Style::ALL.iter().all(|&style| max_re(&with_ratio(style, speed, ks), speed) <= BOUND)
+fn stable(style: Style, speed: f64, ks: f64) -> bool {
+    max_re(&with_ratio(style, speed, ks), speed) <= BOUND
 }
 
-/// The boundary of the window between `inside` (holds) and `outside` (does not), by bisection
-/// in the logarithm.
-fn boundary(speed: f64, mut inside: f64, mut outside: f64) -> f64 {
-    for _ in 0..40 {
-        let mid = (inside * outside).sqrt();
-        if holds(speed, mid) { inside = mid } else { outside = mid }
-    }
-    inside
+fn changes_lane(style: Style, speed: f64, ks: f64) -> bool {
+    let (bounds, driver) = (LANE_CHANGE_BOUNDS, with_ratio(style, speed, ks));
+    [true, false].iter().all(|&left| bounds.hold(&bounds.response_of(&driver, speed, left, DT)))
 }
 
-/// The window [low, high] of K_s that holds at `speed`, from a grid 1e-4..1e3 rad/m at 200
-/// points a decade refined by bisection; `None` if nothing on the grid holds. Panics if
-/// the grid finds more than one window.
-fn window(speed: f64) -> Option<(f64, f64)> {
-    let grid: Vec<f64> = (0..=1400).map(|k| 1e-4 * 10f64.powf(k as f64 / 200.0)).collect();
-    let inside: Vec<usize> = (0..grid.len()).filter(|&k| holds(speed, grid[k])).collect();
+/// The window [low, high] of K_s (rad/m) in which `holds`, from a grid over [from, to] at 100
+/// points a decade refined by bisection in the logarithm; `None` if nothing on the grid
+/// holds. Panics if the grid finds more than one window or the window reaches its end.
+fn window(from: f64, to: f64, holds: impl Fn(f64) -> bool) -> Option<(f64, f64)> {
+    let points = (100.0 * (to / from).log10()).round() as usize;
+    let grid: Vec<f64> = (0..=points).map(|k| from * (to / from).powf(k as f64 / points as f64)).collect();
+    let inside: Vec<usize> = (0..grid.len()).filter(|&k| holds(grid[k])).collect();
     let (&first, &last) = (inside.first()?, inside.last()?);
-    assert_eq!(last - first + 1, inside.len(), "more than one window at {speed} m/s");
-    assert!(first > 0 && last < grid.len() - 1, "the window at {speed} m/s reaches the grid's end");
-    Some((boundary(speed, grid[first], grid[first - 1]), boundary(speed, grid[last], grid[last + 1])))
+    assert_eq!(last - first + 1, inside.len(), "more than one window");
+    assert!(first > 0 && last < grid.len() - 1, "the window reaches the grid's end");
+    let edge = |mut inside: f64, mut outside: f64| {
+        for _ in 0..30 {
+            let mid = (inside * outside).sqrt();
+            if holds(mid) { inside = mid } else { outside = mid }
+        }
+        inside
+    };
+    Some((edge(grid[first], grid[first - 1]), edge(grid[last], grid[last + 1])))
 }
 
-/// The worst (largest) Re lambda over `speeds()` for `driver_at(speed)`, and where.
-fn worst(driver_at: impl Fn(f64) -> DriverParams) -> (f64, f64) {
-    speeds().map(|v| (max_re(&driver_at(v), v), v)).fold((f64::MIN, 0.0), |a, b| if b.0 > a.0 { b } else { a })
+/// The K_s windows of one style: of the bound at every speed of `speeds()`, and of the lane
+/// change at every speed of `LANE_CHANGE_BOUNDS`.
+struct Windows {
+    stable: Vec<(f64, (f64, f64))>,
+    lane_change: Vec<(f64, (f64, f64))>,
+}
+
+fn windows(style: Style) -> Windows {
+    let stable = speeds()
+        .into_iter()
+        .map(|v| (v, window(1e-4, 1e3, |ks| stable(style, v, ks)).expect("a stable K_s at every speed")))
+        .collect();
+    let lane_change = LANE_CHANGE_BOUNDS
+        .speeds
+        .iter()
+        .map(|&v| (v, window(1e-3, 1.0, |ks| changes_lane(style, v, ks)).expect("a K_s that changes lanes")))
+        .collect();
+    Windows { stable, lane_change }
+}
+
+/// The K_0 (rad/m) of K_s = K_0 (v_ref / v_x)^p that keep K_s inside every window of `of`;
+/// `None` if none does.
+fn k0_window(of: &[(f64, (f64, f64))], v_ref: f64, p: f64) -> Option<(f64, f64)> {
+    let factor = |v: f64| (v_ref / v).powf(p);
+    let low = of.iter().map(|&(v, (low, _))| low / factor(v)).fold(0.0, f64::max);
+    let high = of.iter().map(|&(v, (_, high))| high / factor(v)).fold(f64::INFINITY, f64::min);
+    (low <= high).then_some((low, high))
+}
+
+fn intersect(a: Option<(f64, f64)>, b: Option<(f64, f64)>) -> Option<(f64, f64)> {
+    let ((a0, a1), (b0, b1)) = (a?, b?);
+    (a0.max(b0) <= a1.min(b1)).then_some((a0.max(b0), a1.min(b1)))
+}
+
+fn show(window: Option<(f64, f64)>) -> String {
+    window.map_or("none".to_string(), |(low, high)| format!("{low:.4}–{high:.4}"))
 }
 
 fn main() {
-    let schedule = DriverParams::default();
-    println!(
-        "## The K_s schedule of params.rs (`DriverParams::steering_ratio_at`), K_0 = {} rad/m, v_ref = {} m/s\n",
-        schedule.steering_ratio, schedule.reference_speed
-    );
+    println!("## The drivers of params.rs: largest Re λ of the lateral modes (1/s)\n");
     let shown = [1.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 36.0, 40.0];
-    print!("| style | largest Re λ, 1–40 m/s (1/s) | at (m/s) |");
+    print!("| style | K_0 (rad/m) | largest, 1–40 m/s | at (m/s) |");
     shown.iter().for_each(|v| print!(" {v} m/s |"));
-    println!("\n|---|---:|---:|{}", "---:|".repeat(shown.len()));
+    println!("\n|---|---:|---:|---:|{}", "---:|".repeat(shown.len()));
     for style in Style::ALL {
         let driver = DriverParams::for_style(style);
-        let (re, at) = worst(|_| driver);
-        print!("| {} | {re:+.3} | {at} |", style.name());
+        let (re, at) = speeds()
+            .into_iter()
+            .map(|v| (max_re(&driver, v), v))
+            .fold((f64::MIN, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+        print!("| {} | {} | {re:+.3} | {at} |", style.name(), driver.steering_ratio);
         shown.iter().for_each(|&v| print!(" {:+.3} |", max_re(&driver, v)));
         println!();
     }
 
-    println!("\n## The window of K_s with every style's lateral modes at Re λ <= {BOUND} 1/s\n");
-    println!(
-        "| v_x (m/s) | K_s from (rad/m) | K_s to (rad/m) | from × v_x² | to × v_x² | K_s of params.rs | K_0 v_ref/v_x (issue 23) |"
-    );
-    println!("|---:|---:|---:|---:|---:|---:|---:|");
-    for v in WINDOW_SPEEDS {
-        let previous = schedule.steering_ratio * schedule.reference_speed / v;
-        match window(v) {
-            Some((low, high)) => println!(
-                "| {v} | {low:.4} | {high:.4} | {:.3} | {:.1} | {:.4} | {previous:.4} |",
-                low * v * v,
-                high * v * v,
-                schedule.steering_ratio_at(v)
-            ),
-            None => println!("| {v} | none | none | | | {:.4} | {previous:.4} |", schedule.steering_ratio_at(v)),
+    let all: Vec<(Style, Windows)> = Style::ALL.iter().map(|&style| (style, windows(style))).collect();
+    println!("\n## K_s (rad/m) keeping the lateral modes at Re λ <= {BOUND} 1/s, and the lane change within bounds\n");
+    println!("| speed (m/s) | style | stable | lane change | both |");
+    println!("|---:|---|---|---|---|");
+    for (k, &v) in LANE_CHANGE_BOUNDS.speeds.iter().enumerate() {
+        for (style, windows) in &all {
+            let stable = windows.stable.iter().find(|(speed, _)| *speed == v).map(|&(_, w)| w);
+            let lane_change = Some(windows.lane_change[k].1);
+            let both = intersect(stable, lane_change);
+            println!("| {v} | {} | {} | {} | {} |", style.name(), show(stable), show(lane_change), show(both));
         }
     }
 
-    println!("\n## Issue 23's schedule, K_s = K_0 v_ref / v_x (same K_0 and v_ref)\n");
-    println!("| style | largest Re λ, 1–40 m/s (1/s) | at (m/s) | at 30 m/s | at 36 m/s |");
-    println!("|---|---:|---:|---:|---:|");
-    for style in Style::ALL {
-        let previous = |v: f64| with_ratio(style, v, schedule.steering_ratio * schedule.reference_speed / v);
-        let (re, at) = worst(previous);
-        let at_speed = |v: f64| max_re(&previous(v), v);
-        println!("| {} | {re:+.3} | {at} | {:+.3} | {:+.3} |", style.name(), at_speed(30.0), at_speed(36.0));
+    let schedule = DriverParams::default();
+    let v_ref = schedule.reference_speed;
+    let p_params = -schedule.steering_ratio_slope_at(v_ref) * v_ref / schedule.steering_ratio_at(v_ref);
+    println!("\n## K_0 (rad/m) of K_s = K_0 ({v_ref} m/s / v_x)^p: the bound at 1–40 m/s, the lane changes, both\n");
+    println!("| p | style | stable | lane changes | both | params.rs |");
+    println!("|---:|---|---|---|---|---:|");
+    for p in [1.0, p_params, 2.0] {
+        let mut common = Some((0.0, f64::INFINITY));
+        for (style, windows) in &all {
+            let stable = k0_window(&windows.stable, v_ref, p);
+            let lane_change = k0_window(&windows.lane_change, v_ref, p);
+            let both = intersect(stable, lane_change);
+            common = intersect(common, both);
+            let chosen =
+                if p == p_params { DriverParams::for_style(*style).steering_ratio.to_string() } else { String::new() };
+            println!(
+                "| {p:.1} | {} | {} | {} | {} | {chosen} |",
+                style.name(),
+                show(stable),
+                show(lane_change),
+                show(both)
+            );
+        }
+        println!("| {p:.1} | one K_0 for all | | | {} | |", show(common));
     }
 }

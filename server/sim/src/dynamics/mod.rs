@@ -32,7 +32,7 @@ pub use params::{DriverParams, Style, VehicleParams};
 pub use path::{LANE_CHANGE_DURATION, LateralPath};
 pub use physics_step::{
     LANE_CHANGE_BOUNDS, LATERAL_STATES, LaneChangeBounds, LaneChangeResponse, RK4_CHECK_SPEEDS, cruising_modes,
-    lane_change_response, lane_change_trajectory, lateral_modes, rk4_growth,
+    lane_change_response, lane_change_trajectory, lane_change_trajectory_of, lateral_modes, rk4_growth,
 };
 pub use state::{Command, INPUTS, STATES, VehicleState};
 

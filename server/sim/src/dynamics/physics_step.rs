@@ -111,8 +111,14 @@ impl LaneChangeBounds {
     /// A lane change of `style` at `speed` along the `LANE_CHANGE_DURATION` path, to the
     /// left (`left`) or to the right, integrated with physics step `dt`.
     pub fn response(&self, style: Style, speed: f64, left: bool, dt: f64) -> LaneChangeResponse {
+        self.response_of(&DriverParams::for_style(style), speed, left, dt)
+    }
+
+    /// `response` for any driver (the K_s study of `examples/stability.rs` varies K_s).
+    pub fn response_of(&self, driver: &DriverParams, speed: f64, left: bool, dt: f64) -> LaneChangeResponse {
         let width = if left { self.width } else { -self.width };
-        lane_change_response(style, speed, width, LANE_CHANGE_DURATION, self.band, self.horizon, dt)
+        let trajectory = lane_change_trajectory_of(driver, speed, width, LANE_CHANGE_DURATION, self.horizon, dt);
+        measure(&trajectory, width, self.band, dt)
     }
 
     /// Whether a response keeps within the bounds.
@@ -133,10 +139,21 @@ pub fn lane_change_trajectory(
     horizon: f64,
     dt: f64,
 ) -> Vec<VehicleState> {
+    lane_change_trajectory_of(&DriverParams::for_style(style), speed, width, path_duration, horizon, dt)
+}
+
+/// `lane_change_trajectory` for any driver.
+pub fn lane_change_trajectory_of(
+    driver: &DriverParams,
+    speed: f64,
+    width: f64,
+    path_duration: f64,
+    horizon: f64,
+    dt: f64,
+) -> Vec<VehicleState> {
     let vehicle = VehicleParams::default();
-    let driver = DriverParams::for_style(style);
     let path = LateralPath { from: 0.0, to: width, start: 0.0, duration: path_duration };
-    let stepper = Stepper::new(&vehicle, &driver, dt);
+    let stepper = Stepper::new(&vehicle, driver, dt);
     let mut state = VehicleState::cruising(0.0, 0.0, speed);
     let steps = (horizon / dt).round() as usize;
     (0..steps)
@@ -159,8 +176,13 @@ pub fn lane_change_response(
     horizon: f64,
     dt: f64,
 ) -> LaneChangeResponse {
+    measure(&lane_change_trajectory(style, speed, width, path_duration, horizon, dt), width, band, dt)
+}
+
+/// How a `width` lane change's `trajectory` (states every `dt`) settles to within `band`.
+fn measure(trajectory: &[VehicleState], width: f64, band: f64, dt: f64) -> LaneChangeResponse {
     let (mut settling_time, mut overshoot) = (0.0, 0.0f64);
-    for (k, state) in lane_change_trajectory(style, speed, width, path_duration, horizon, dt).iter().enumerate() {
+    for (k, state) in trajectory.iter().enumerate() {
         overshoot = overshoot.max((state.d - width) * width.signum());
         if (state.d - width).abs() > band {
             settling_time = (k + 1) as f64 * dt;

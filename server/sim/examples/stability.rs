@@ -10,9 +10,13 @@
 //! 2. at each lane-change speed, per style, the window of K_s in which the lateral modes
 //!    keep Re lambda <= -0.02 1/s (issue 23's bound) and the one in which the lane change
 //!    keeps the bounds (settling, overshoot; both directions);
+//!    and how the windows' edges scale: the largest stable K_s times v_x^2, the smallest
+//!    K_s of a lane change within bounds times v_x;
 //! 3. for schedules K_s = K_0 (v_ref / v_x)^p (p = 1, the issue's; params.rs' p; 2), per
 //!    style, the K_0 that keep the bound at every speed of 1-40 m/s, the K_0 that keep
-//!    every lane change within bounds, both, and params.rs' K_0.
+//!    every lane change within bounds, both, and params.rs' K_0;
+//! 4. for comparison, the largest Re lambda under the schedule issue 23 found unstable,
+//!    K_s = 0.05 * 20 / v_x for every style.
 //!
 //! A K_s is tried by scaling a driver's K_0 so that its schedule gives that K_s at the
 //! speed in question: about straight cruising only K_s there enters the Jacobian (its
@@ -23,6 +27,9 @@ use arena_sim::dynamics::{DriverParams, LANE_CHANGE_BOUNDS, Style, lateral_modes
 
 /// Issue 23's bound on every lateral mode's real part (1/s).
 const BOUND: f64 = -0.02;
+/// The schedule issue 23 found unstable: K_s = ISSUE_K0 * ISSUE_V_REF / v_x (rad/m, m/s).
+const ISSUE_K0: f64 = 0.05;
+const ISSUE_V_REF: f64 = 20.0;
 /// The physics step of the lane changes (s), as `examples/lane_change.rs`.
 const DT: f64 = 0.01;
 
@@ -140,6 +147,24 @@ fn main() {
         }
     }
 
+    let edge_speeds = [1.0, 2.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 36.0, 40.0];
+    println!(
+        "\nThe largest stable K_s times v_x² (rad m), and the smallest K_s of a lane change within bounds times v_x (rad):\n"
+    );
+    print!("| style |");
+    edge_speeds.iter().for_each(|v| print!(" K_s v² at {v} m/s |"));
+    LANE_CHANGE_BOUNDS.speeds.iter().for_each(|v| print!(" lane change: K_s v at {v} m/s |"));
+    println!("\n|---|{}", "---:|".repeat(edge_speeds.len() + LANE_CHANGE_BOUNDS.speeds.len()));
+    for (style, windows) in &all {
+        print!("| {} |", style.name());
+        for v in edge_speeds {
+            let (_, (_, high)) = windows.stable.iter().find(|(speed, _)| *speed == v).expect("a speed of speeds()");
+            print!(" {:.1} |", high * v * v);
+        }
+        windows.lane_change.iter().for_each(|&(v, (low, _))| print!(" {:.2} |", low * v));
+        println!();
+    }
+
     let schedule = DriverParams::default();
     let v_ref = schedule.reference_speed;
     let p_params = -schedule.steering_ratio_slope_at(v_ref) * v_ref / schedule.steering_ratio_at(v_ref);
@@ -164,5 +189,17 @@ fn main() {
             );
         }
         println!("| {p:.1} | one K_0 for all | | | {} | |", show(common));
+    }
+
+    println!("\n## For comparison: K_s = {ISSUE_K0} · {ISSUE_V_REF} m/s / v_x for every style (issue 23)\n");
+    println!("| style | largest Re λ, 1–40 m/s (1/s) | at (m/s) | 20 m/s | 27 m/s | 30 m/s | 36 m/s |");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    for style in Style::ALL {
+        let at_speed = |v: f64| max_re(&with_ratio(style, v, ISSUE_K0 * ISSUE_V_REF / v), v);
+        let (re, at) =
+            speeds().into_iter().map(|v| (at_speed(v), v)).fold((f64::MIN, 0.0), |a, b| if b.0 > a.0 { b } else { a });
+        print!("| {} | {re:+.3} | {at} |", style.name());
+        [20.0, 27.0, 30.0, 36.0].iter().for_each(|&v| print!(" {:+.3} |", at_speed(v)));
+        println!();
     }
 }

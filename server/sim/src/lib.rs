@@ -22,7 +22,7 @@ mod world;
 pub use dynamics::{
     Command, DriverParams, LANE_CHANGE_BOUNDS, LANE_CHANGE_DURATION, LaneChangeBounds, LaneChangeResponse, LateralPath,
     RK4_CHECK_SPEEDS, Style, VehicleParams, VehicleState, cruising_modes, lane_change_response, lane_change_trajectory,
-    rk4_growth,
+    lateral_modes, rk4_growth,
 };
 pub use gt::{
     AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, FieldParams, Game,

@@ -73,7 +73,7 @@ pub fn linearise(
     let DriverParams { delay, preview_time, steering_gain, damping, .. } = *driver;
     let gain = steering_gain / (damping * delay * delay);
     let ratio = driver.steering_ratio_at(vx);
-    let ratio_dvx = -ratio / vx;
+    let ratio_dvx = driver.steering_ratio_slope_at(vx);
     let error = command.preview - (d + preview_time * vx * heading);
     a[(7, 7)] = -1.0 / (damping * delay);
     a[(7, 6)] = -1.0 / (damping * delay * delay);

@@ -33,9 +33,11 @@ pub use linear::linearise;
 use model::{derivative, fixed_steer_derivative};
 pub use params::{DriverParams, Style, VehicleParams};
 pub use path::{LANE_CHANGE_DURATION, LateralPath};
+#[cfg(test)]
+use physics_step::LATERAL_STATES;
 pub use physics_step::{
     LANE_CHANGE_BOUNDS, LaneChangeBounds, LaneChangeResponse, RK4_CHECK_SPEEDS, cruising_modes, lane_change_response,
-    lane_change_trajectory, rk4_growth,
+    lane_change_trajectory, lateral_modes, rk4_growth,
 };
 #[cfg(test)]
 use state::INPUTS;

@@ -4,7 +4,7 @@
 //! are prepared once per driver (`Model`), as f runs four times per RK4 step.
 
 use super::lanes::{self, Lanes};
-use super::params::{DriverParams, VehicleParams};
+use super::params::{DriverParams, VehicleParams, steering_schedule};
 use super::state::{Command, StateLanes, Vector8, array_of, lanes_of};
 
 /// The constants of f for N vehicles and their drivers, with reciprocals taken once:
@@ -25,13 +25,13 @@ pub(super) struct Model<const N: usize> {
     /// 1 / (a T_d) and 1 / (a T_d^2) of eq. (1).
     rate_gain: Lanes<N>,
     angle_gain: Lanes<N>,
-    /// K_0 v_ref G_s / (a T_d^2): eq. (1)'s preview gain times v_x, as K_s = K_0 v_ref / v_x.
+    /// K_0 v_ref^(3/2) G_s / (a T_d^2): eq. (1)'s preview gain times v_x^(3/2), as K_s = K_0 (v_ref / v_x)^(3/2).
     preview_gain: Lanes<N>,
 }
 
 impl Model<1> {
     pub(super) fn new(vehicle: &VehicleParams, driver: &DriverParams) -> Model<1> {
-        let DriverParams { delay, preview_time, steering_gain, damping, steering_ratio, reference_speed } = *driver;
+        let DriverParams { delay, preview_time, steering_gain, damping, .. } = *driver;
         let lane = |value: f64| Lanes([value]);
         Model {
             front_axle: lane(vehicle.front_axle),
@@ -46,7 +46,7 @@ impl Model<1> {
             preview_time: lane(preview_time),
             rate_gain: lane(1.0 / (damping * delay)),
             angle_gain: lane(1.0 / (damping * delay * delay)),
-            preview_gain: lane(steering_ratio * reference_speed * steering_gain / (damping * delay * delay)),
+            preview_gain: lane(driver.steering_ratio_scale() * steering_gain / (damping * delay * delay)),
         }
     }
 }
@@ -156,8 +156,9 @@ fn driver_derivative<const N: usize>(
 ) -> Lanes<N> {
     let [vx, _, _, heading, _, d, steer, steer_rate] = *x;
     let predicted = d + model.preview_time * vx * heading;
-    // eq. (1), with K_s = K_0 v_ref / v_x folded into preview_gain * inv_speed
-    -steer_rate * model.rate_gain - steer * model.angle_gain + model.preview_gain * inv_speed * (preview - predicted)
+    // eq. (1), with K_s = K_0 (v_ref / v_x)^(3/2) folded into preview_gain and the schedule
+    let preview_gain = steering_schedule(model.preview_gain, inv_speed);
+    -steer_rate * model.rate_gain - steer * model.angle_gain + preview_gain * (preview - predicted)
 }
 
 /// f(x, u) of eq. (7)–(8) on a lane of the given curvature.

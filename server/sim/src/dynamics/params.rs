@@ -5,6 +5,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::lanes::Lanes;
+
 /// The vehicle of Table II plus the body size used for collisions.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct VehicleParams {
@@ -101,29 +103,54 @@ pub struct DriverParams {
     pub steering_gain: f64,
     /// a, the damping-rate factor of eq. (1). Table I.
     pub damping: f64,
-    /// K_0 in K_s = K_0 * (v_ref / v_x), the steering ratio at `reference_speed`
-    /// (rad/m). 0.05, chosen here (the paper leaves K_s open; docs/parameters.md).
+    /// K_0 in K_s = K_0 * (v_ref / v_x)^(3/2), the steering ratio at `reference_speed`
+    /// (rad/m), one per style: 0.037 aggressive, 0.043 normal, 0.058 conservative, each the
+    /// middle of the K_0 that keep the style's lateral modes at Re lambda <= -0.02 1/s from
+    /// 1 to 40 m/s and its lane changes within `LANE_CHANGE_BOUNDS`. Chosen here (the paper
+    /// leaves K_s open; docs/parameters.md, "K_s"; `examples/stability.rs`).
     pub steering_ratio: f64,
     /// v_ref of the K_s schedule (m/s). 20, chosen here.
     pub reference_speed: f64,
 }
 
 impl DriverParams {
-    /// Table I's column for `style`, with the K_s schedule chosen here.
+    /// Table I's column for `style`, with the K_0 and v_ref of the K_s schedule chosen here.
     pub fn for_style(style: Style) -> DriverParams {
-        let (delay, preview_time, steering_gain, damping) = match style {
-            Style::Aggressive => (0.14, 1.02, 0.84, 0.24),
-            Style::Normal => (0.18, 0.94, 0.75, 0.23),
-            Style::Conservative => (0.24, 0.83, 0.62, 0.22),
+        let (delay, preview_time, steering_gain, damping, steering_ratio) = match style {
+            Style::Aggressive => (0.14, 1.02, 0.84, 0.24, 0.037),
+            Style::Normal => (0.18, 0.94, 0.75, 0.23, 0.043),
+            Style::Conservative => (0.24, 0.83, 0.62, 0.22, 0.058),
         };
-        DriverParams { delay, preview_time, steering_gain, damping, steering_ratio: 0.05, reference_speed: 20.0 }
+        DriverParams { delay, preview_time, steering_gain, damping, steering_ratio, reference_speed: 20.0 }
     }
 
-    /// K_s at speed `vx`: the closed loop's gain grows with vx^2, so K_s falls with vx
-    /// to keep every style settling without oscillation from 15 to 30 m/s.
+    /// K_s at speed `vx`: K_0 (v_ref / v_x)^(3/2). The closed loop's gain grows with v_x^2
+    /// (the displacement a steering angle makes), so the largest K_s that keeps it stable
+    /// falls about as 1/v_x^2; the smallest that keeps a lane change within bounds falls
+    /// only about as 1/v_x. The exponent 3/2 keeps each style between the two
+    /// (docs/parameters.md, "K_s").
     pub fn steering_ratio_at(&self, vx: f64) -> f64 {
-        self.steering_ratio * self.reference_speed / vx
+        steering_schedule(Lanes([self.steering_ratio_scale()]), Lanes([1.0 / vx])).0[0]
     }
+
+    /// dK_s/dv_x at speed `vx` (rad s/m^2): -(3/2) K_s / v_x, the slope of `steering_ratio_at`.
+    pub fn steering_ratio_slope_at(&self, vx: f64) -> f64 {
+        -1.5 * self.steering_ratio_at(vx) / vx
+    }
+
+    /// K_s v_x^(3/2) = K_0 v_ref^(3/2): the schedule's constant.
+    pub(super) fn steering_ratio_scale(&self) -> f64 {
+        self.steering_ratio * self.reference_speed * self.reference_speed.sqrt()
+    }
+}
+
+/// The K_s schedule, once for one vehicle and a block of them: `scale` / v_x^(3/2), with
+/// `scale` `DriverParams::steering_ratio_scale` (or it times eq. (1)'s other constant
+/// factors) and `inv_speed` 1 / v_x. A square root, not `powf`: IEEE rounds it exactly,
+/// so the bits do not depend on the machine's libm.
+#[inline(always)]
+pub(super) fn steering_schedule<const N: usize>(scale: Lanes<N>, inv_speed: Lanes<N>) -> Lanes<N> {
+    scale * inv_speed * inv_speed.map(f64::sqrt)
 }
 
 impl Default for DriverParams {

@@ -16,22 +16,42 @@ use super::state::{Command, STATES, Vector8, VehicleState};
 /// learners' top speed on a 30 m/s lane (36).
 pub const RK4_CHECK_SPEEDS: [f64; 14] = [0.5, 0.9, 1.0, 1.1, 1.5, 2.0, 3.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 36.0];
 
-/// The modes (eigenvalues, 1/s) of the closed loop of eq. (7)-(8), driver and bicycle,
-/// about a car of `style` cruising straight at `speed` on a straight lane. The Jacobian is
-/// taken by central differences of `derivative`, so it includes the low-speed guard and
-/// the tyre forces' fade below it (which `linearise` leaves out).
-pub fn cruising_modes(style: Style, speed: f64) -> Vec<nalgebra::Complex<f64>> {
-    let (vehicle, driver) = (VehicleParams::default(), DriverParams::for_style(style));
+/// The Jacobian of the closed loop of eq. (7)-(8), driver and bicycle, about a car with
+/// `driver` cruising straight at `speed` on a straight lane, by central differences of
+/// `derivative`: it includes the low-speed guard and the tyre forces' fade below it
+/// (which `linearise` leaves out).
+pub(super) fn cruising_jacobian(driver: &DriverParams, speed: f64) -> SMatrix<f64, STATES, STATES> {
+    let vehicle = VehicleParams::default();
     let x0 = VehicleState::cruising(0.0, 0.0, speed).to_array();
-    let jacobian = SMatrix::<f64, STATES, STATES>::from_fn(|i, j| {
+    SMatrix::<f64, STATES, STATES>::from_fn(|i, j| {
         let h = 1e-7 * x0[j].abs().max(1.0);
         let (mut plus, mut minus) = (x0, x0);
         plus[j] += h;
         minus[j] -= h;
-        let f = |x: &Vector8| derivative(x, Command::default(), 0.0, &vehicle, &driver)[i];
+        let f = |x: &Vector8| derivative(x, Command::default(), 0.0, &vehicle, driver)[i];
         (f(&plus) - f(&minus)) / (2.0 * h)
-    });
-    jacobian.complex_eigenvalues().iter().copied().collect()
+    })
+}
+
+/// The modes (eigenvalues, 1/s) of the closed loop of eq. (7)-(8), driver and bicycle,
+/// about a car of `style` cruising straight at `speed` on a straight lane
+/// (`cruising_jacobian`).
+pub fn cruising_modes(style: Style, speed: f64) -> Vec<nalgebra::Complex<f64>> {
+    cruising_jacobian(&DriverParams::for_style(style), speed).complex_eigenvalues().iter().copied().collect()
+}
+
+/// The lateral states of x: v_y, r, heading, d, steer, steer rate (indices into eq. 8's x).
+/// About straight cruising at zero acceleration they do not depend on v_x or s, so the
+/// closed loop's modes are these six and the two integrators of v_x and s (both 0).
+pub const LATERAL_STATES: [usize; 6] = [1, 2, 3, 5, 6, 7];
+
+/// The six lateral modes (eigenvalues, 1/s) of the closed loop about a car with `driver`
+/// cruising straight at `speed`: those of `cruising_jacobian`'s `LATERAL_STATES` block
+/// (docs/parameters.md, "K_s"; `examples/stability.rs` prints them).
+pub fn lateral_modes(driver: &DriverParams, speed: f64) -> Vec<nalgebra::Complex<f64>> {
+    let jacobian = cruising_jacobian(driver, speed);
+    let lateral = SMatrix::<f64, 6, 6>::from_fn(|i, j| jacobian[(LATERAL_STATES[i], LATERAL_STATES[j])]);
+    lateral.complex_eigenvalues().iter().copied().collect()
 }
 
 /// How much more one RK4 step of `dt` amplifies the closed loop's modes at `speed` than
@@ -91,8 +111,14 @@ impl LaneChangeBounds {
     /// A lane change of `style` at `speed` along the `LANE_CHANGE_DURATION` path, to the
     /// left (`left`) or to the right, integrated with physics step `dt`.
     pub fn response(&self, style: Style, speed: f64, left: bool, dt: f64) -> LaneChangeResponse {
+        self.response_of(&DriverParams::for_style(style), speed, left, dt)
+    }
+
+    /// `response` for any driver (the K_s study of `examples/stability.rs` varies K_s).
+    pub fn response_of(&self, driver: &DriverParams, speed: f64, left: bool, dt: f64) -> LaneChangeResponse {
         let width = if left { self.width } else { -self.width };
-        lane_change_response(style, speed, width, LANE_CHANGE_DURATION, self.band, self.horizon, dt)
+        let trajectory = lane_change_trajectory_of(driver, speed, width, LANE_CHANGE_DURATION, self.horizon, dt);
+        measure(&trajectory, width, self.band, dt)
     }
 
     /// Whether a response keeps within the bounds.
@@ -113,10 +139,21 @@ pub fn lane_change_trajectory(
     horizon: f64,
     dt: f64,
 ) -> Vec<VehicleState> {
+    lane_change_trajectory_of(&DriverParams::for_style(style), speed, width, path_duration, horizon, dt)
+}
+
+/// `lane_change_trajectory` for any driver.
+pub fn lane_change_trajectory_of(
+    driver: &DriverParams,
+    speed: f64,
+    width: f64,
+    path_duration: f64,
+    horizon: f64,
+    dt: f64,
+) -> Vec<VehicleState> {
     let vehicle = VehicleParams::default();
-    let driver = DriverParams::for_style(style);
     let path = LateralPath { from: 0.0, to: width, start: 0.0, duration: path_duration };
-    let stepper = Stepper::new(&vehicle, &driver, dt);
+    let stepper = Stepper::new(&vehicle, driver, dt);
     let mut state = VehicleState::cruising(0.0, 0.0, speed);
     let steps = (horizon / dt).round() as usize;
     (0..steps)
@@ -139,8 +176,13 @@ pub fn lane_change_response(
     horizon: f64,
     dt: f64,
 ) -> LaneChangeResponse {
+    measure(&lane_change_trajectory(style, speed, width, path_duration, horizon, dt), width, band, dt)
+}
+
+/// How a `width` lane change's `trajectory` (states every `dt`) settles to within `band`.
+fn measure(trajectory: &[VehicleState], width: f64, band: f64, dt: f64) -> LaneChangeResponse {
     let (mut settling_time, mut overshoot) = (0.0, 0.0f64);
-    for (k, state) in lane_change_trajectory(style, speed, width, path_duration, horizon, dt).iter().enumerate() {
+    for (k, state) in trajectory.iter().enumerate() {
         overshoot = overshoot.max((state.d - width) * width.signum());
         if (state.d - width).abs() > band {
             settling_time = (k + 1) as f64 * dt;

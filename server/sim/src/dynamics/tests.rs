@@ -163,6 +163,8 @@ fn a_lane_change_begun_at_a_standstill_stays_a_gentle_one() {
     // A car waiting at a lane end, then pulling into the lane beside it (IDM + MOBIL do
     // this, and so can a learner): the driver keeps steering towards the preview point
     // while the car stands, so only the wheels' stop keeps the start from being violent.
+    // v_x ends above the 12 m/s of the acceleration alone: eq. (2)'s v_x' = v_y r + a_x
+    // while the car swings across (up to 1.35 m/s, conservative, with K_s of params.rs).
     let vehicle = VehicleParams::default();
     for style in Style::ALL {
         let driver = DriverParams::for_style(style);
@@ -172,7 +174,7 @@ fn a_lane_change_begun_at_a_standstill_stays_a_gentle_one() {
             let before = state;
             state = step(&state, Command { accel, preview: 4.0 }, 0.0, DT, &vehicle, &driver);
             assert!(state.steer.abs() <= vehicle.max_steer + 1e-12, "{style:?} step {k}: steer {}", state.steer);
-            assert!(state.vx <= 13.0 && state.s >= before.s - 1e-9, "{style:?} step {k}: {state:?}");
+            assert!(state.vx <= 13.5 && state.s >= before.s - 1e-9, "{style:?} step {k}: {state:?}");
             assert!(state.heading.abs() < 1.0, "{style:?} step {k}: heading {}", state.heading);
         }
         assert!((state.d - 4.0).abs() < 1.0, "{style:?} ends in the lane it pulled into: d = {}", state.d);
@@ -189,5 +191,58 @@ fn rk4_growth_finds_the_stiff_tyres_at_the_low_speed_guard() {
         }
         assert!(rk4_growth(style, 1.0, 0.05) > 1.05, "{style:?} at the guard, dt 50 ms");
         assert!(rk4_growth(style, 20.0, 0.05) <= 1.0 + 1e-6, "{style:?} at 20 m/s, dt 50 ms");
+    }
+}
+
+#[test]
+fn every_lateral_mode_decays_for_every_style_at_every_speed() {
+    // Issue 23: every lateral mode of the closed loop has Re lambda <= -0.02 1/s for every
+    // style at 1-40 m/s. The bound is the issue's, not computed here.
+    const BOUND: f64 = -0.02;
+    for style in Style::ALL {
+        let driver = DriverParams::for_style(style);
+        for k in 2..=80 {
+            let speed = k as f64 * 0.5;
+            // The left-out modes are the integrators of v_x and s: the lateral rows of the
+            // Jacobian do not read v_x or s, and their own rows are [0, ...] and ds/dv_x = 1.
+            let jacobian = physics_step::cruising_jacobian(&driver, speed);
+            for &i in &LATERAL_STATES {
+                for j in [0, 4] {
+                    assert!(
+                        jacobian[(i, j)].abs() < 1e-9,
+                        "{style:?} at {speed} m/s: J[{i},{j}] = {}",
+                        jacobian[(i, j)]
+                    );
+                }
+            }
+            let modes = lateral_modes(&driver, speed);
+            assert_eq!(modes.len(), LATERAL_STATES.len());
+            for lambda in modes {
+                assert!(lambda.re <= BOUND, "{style:?} at {speed} m/s: mode {lambda}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_five_centimetre_offset_dies_out_at_30_and_36_metres_per_second() {
+    // Issue 23: a car keeping its lane at constant speed on a straight road, started 5 cm
+    // off its centre, swings by less than 1 cm over the last 10 s of 120 s (with
+    // K_s = K_0 v_ref / v_x the aggressive and normal drivers' weave grew to 0.35-0.45 m).
+    let vehicle = VehicleParams::default();
+    for style in Style::ALL {
+        let driver = DriverParams::for_style(style);
+        for speed in [30.0, 36.0] {
+            let mut state = VehicleState::cruising(0.0, 0.05, speed);
+            let mut amplitude = 0.0f64;
+            for k in 1..=12_000 {
+                state = step(&state, Command { accel: 0.0, preview: 0.0 }, 0.0, DT, &vehicle, &driver);
+                if k > 11_000 {
+                    amplitude = amplitude.max(state.d.abs());
+                }
+            }
+            assert!(state.d.is_finite() && amplitude < 0.01, "{style:?} at {speed} m/s: amplitude {amplitude} m");
+            assert!((state.vx - speed).abs() < 0.01, "{style:?}: speed {} m/s, not constant", state.vx);
+        }
     }
 }

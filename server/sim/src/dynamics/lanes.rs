@@ -86,6 +86,12 @@ impl<const N: usize> Lanes<N> {
         Self::select(other.lt(self), self, other)
     }
 
+    /// Per lane: the smaller, `other` on a tie.
+    #[inline(always)]
+    pub fn min(self, other: Self) -> Self {
+        Self::select(self.lt(other), self, other)
+    }
+
     /// Per lane: `self` held within [low, high], as `f64::clamp` does it.
     #[inline(always)]
     pub fn clamp(self, low: Self, high: Self) -> Self {

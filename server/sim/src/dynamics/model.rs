@@ -27,6 +27,8 @@ pub(super) struct Model<const N: usize> {
     angle_gain: Lanes<N>,
     /// K_0 v_ref^(3/2) G_s / (a T_d^2): eq. (1)'s preview gain times v_x^(3/2), as K_s = K_0 (v_ref / v_x)^(3/2).
     preview_gain: Lanes<N>,
+    /// 1 / v_ref, below which speed the schedule falls as 1 / v_x (`steering_schedule`).
+    inv_reference_speed: Lanes<N>,
 }
 
 impl Model<1> {
@@ -47,12 +49,13 @@ impl Model<1> {
             rate_gain: lane(1.0 / (damping * delay)),
             angle_gain: lane(1.0 / (damping * delay * delay)),
             preview_gain: lane(driver.steering_ratio_scale() * steering_gain / (damping * delay * delay)),
+            inv_reference_speed: lane(1.0 / driver.reference_speed),
         }
     }
 }
 
 impl<const N: usize> Model<N> {
-    fn fields_mut(&mut self) -> [&mut Lanes<N>; 13] {
+    fn fields_mut(&mut self) -> [&mut Lanes<N>; 14] {
         [
             &mut self.front_axle,
             &mut self.rear_axle,
@@ -67,6 +70,7 @@ impl<const N: usize> Model<N> {
             &mut self.rate_gain,
             &mut self.angle_gain,
             &mut self.preview_gain,
+            &mut self.inv_reference_speed,
         ]
     }
 
@@ -157,7 +161,7 @@ fn driver_derivative<const N: usize>(
     let [vx, _, _, heading, _, d, steer, steer_rate] = *x;
     let predicted = d + model.preview_time * vx * heading;
     // eq. (1), with K_s = K_0 (v_ref / v_x)^(3/2) folded into preview_gain and the schedule
-    let preview_gain = steering_schedule(model.preview_gain, inv_speed);
+    let preview_gain = steering_schedule(model.preview_gain, inv_speed, model.inv_reference_speed);
     -steer_rate * model.rate_gain - steer * model.angle_gain + preview_gain * (preview - predicted)
 }
 

@@ -129,13 +129,19 @@ impl DriverParams {
     /// falls about as 1/v_x^2; the smallest that keeps a lane change within bounds falls
     /// only about as 1/v_x. The exponent 3/2 keeps each style between the two
     /// (docs/parameters.md, "K_s").
+    /// Below v_ref it falls as 1 / v_x, as before the 3/2 was chosen: a steeper rise at
+    /// low speed made the conservative EC of the paper's Scenario A, merging at 8 m/s,
+    /// swing into AC (`arena paper`), and the 1 / v_x loop is stable there.
     pub fn steering_ratio_at(&self, vx: f64) -> f64 {
-        steering_schedule(Lanes([self.steering_ratio_scale()]), Lanes([1.0 / vx])).0[0]
+        let (scale, inv_ref) = (Lanes([self.steering_ratio_scale()]), Lanes([1.0 / self.reference_speed]));
+        steering_schedule(scale, Lanes([1.0 / vx]), inv_ref).0[0]
     }
 
-    /// dK_s/dv_x at speed `vx` (rad s/m^2): -(3/2) K_s / v_x, the slope of `steering_ratio_at`.
+    /// dK_s/dv_x at speed `vx` (rad s/m^2), the slope of `steering_ratio_at`: -(3/2) K_s /
+    /// v_x above v_ref, -K_s / v_x below.
     pub fn steering_ratio_slope_at(&self, vx: f64) -> f64 {
-        -1.5 * self.steering_ratio_at(vx) / vx
+        let exponent = if vx >= self.reference_speed { 1.5 } else { 1.0 };
+        -exponent * self.steering_ratio_at(vx) / vx
     }
 
     /// K_s v_x^(3/2) = K_0 v_ref^(3/2): the schedule's constant.
@@ -144,13 +150,18 @@ impl DriverParams {
     }
 }
 
-/// The K_s schedule, once for one vehicle and a block of them: `scale` / v_x^(3/2), with
-/// `scale` `DriverParams::steering_ratio_scale` (or it times eq. (1)'s other constant
-/// factors) and `inv_speed` 1 / v_x. A square root, not `powf`: IEEE rounds it exactly,
-/// so the bits do not depend on the machine's libm.
+/// The K_s schedule, once for one vehicle and a block of them: `scale` / v_x^(3/2) above
+/// v_ref and `scale` / (v_x v_ref^(1/2)) below, with `scale`
+/// `DriverParams::steering_ratio_scale` (or it times eq. (1)'s other constant factors),
+/// `inv_speed` 1 / v_x and `inv_reference_speed` 1 / v_ref. A square root, not `powf`:
+/// IEEE rounds it exactly, so the bits do not depend on the machine's libm.
 #[inline(always)]
-pub(super) fn steering_schedule<const N: usize>(scale: Lanes<N>, inv_speed: Lanes<N>) -> Lanes<N> {
-    scale * inv_speed * inv_speed.map(f64::sqrt)
+pub(super) fn steering_schedule<const N: usize>(
+    scale: Lanes<N>,
+    inv_speed: Lanes<N>,
+    inv_reference_speed: Lanes<N>,
+) -> Lanes<N> {
+    scale * inv_speed * inv_speed.min(inv_reference_speed).map(f64::sqrt)
 }
 
 impl Default for DriverParams {

@@ -179,7 +179,7 @@ def test_bc_beats_a_random_policy_on_merge_random(merge_random):
     # 30 episodes the expert data never saw (seeds 1000..1029), the same for both policies.
     result = highway_arena.evaluate({"bc": policy, "random": "random"}, "merge-random", episodes=30, seed=1000, quiet=True)
     cloned, random = result.summary("merge-random", "bc"), result.summary("merge-random", "random")
-    # Measured: BC merges in 29 of 30, random in about 5 (its lane runs out or it crashes).
+    # Measured: BC merges in 18 of 30 (its teacher, gt:normal:stackelberg, in 19), random in 7.
     # The 95 % intervals of the two success rates do not overlap.
     assert cloned["success"]["low"] > random["success"]["high"], (cloned["success"], random["success"])
     failures = lambda s: s["collision"]["mean"] + s["off_road"]["mean"]  # noqa: E731

@@ -264,6 +264,12 @@ fn defaults_are_the_documented_ones() {
         (p.interaction.interaction_range, p.interaction.lane_end_time, p.interaction.fallback_brake),
         (60.0, 8.0, 3.0)
     );
+    let m = p.decision.merge;
+    assert!(m.enabled);
+    assert_eq!(
+        [m.min_duration, m.response_lag, m.end_margin, m.stop_margin, m.crossing_speed],
+        [3.0, 0.5, 1.0, 5.0, 2.0]
+    );
 }
 
 #[test]
@@ -314,6 +320,7 @@ fn the_expert_of_a_gt_car_is_its_own_planned_decision_with_its_own_tolerance() {
 /// now and then. Drawn from `next` (uniform in [0, 1)).
 fn random_situation(next: &mut impl FnMut() -> f64) -> super::games::Situation {
     use super::games::{Adjacent, LaneOption, Player, Situation};
+    use super::merge::UnderWay;
     use super::prediction::{Kinematics, SpeedBounds};
     let style = |x: f64| Style::ALL[((x * 3.0) as usize).min(2)];
     let car = |s: f64, d: f64, speed: f64| Kinematics { s, d, speed };
@@ -352,7 +359,19 @@ fn random_situation(next: &mut impl FnMut() -> f64) -> super::games::Situation {
         x if x < 0.2 => Some(1),
         _ => None,
     };
-    Situation { ego, keep, sides, committed, lane_width: 4.0, car_length: 5.0, period: 0.1 }
+    Situation {
+        ego,
+        keep,
+        sides,
+        committed,
+        // Now and then EC's lane ends ahead, and a change under way has a predicted crossing.
+        lane_end: (next() < 0.3).then(|| 5.0 + 100.0 * next()),
+        under_way: (next() < 0.5).then(|| UnderWay { pace: 3.0 + next(), crossing_in: Some(3.0 * next() - 0.5) }),
+        lateral_speed: 2.0 * next() - 0.5,
+        lane_width: 4.0,
+        car_length: 5.0,
+        period: 0.1,
+    }
 }
 
 #[test]
@@ -381,3 +400,4 @@ fn the_fast_search_decides_exactly_as_the_full_tables_do() {
     }
     assert!(lane_changes > 500, "the situations exercise lane changes too: {lane_changes}");
 }
+

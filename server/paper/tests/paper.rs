@@ -164,6 +164,27 @@ fn with_the_defaults_every_stackelberg_lane_change_comes_later_than_its_nash_twi
     assert_eq!(changes, 5, "every lane change of the paper's runs was compared");
 }
 
+#[test]
+fn the_merge_timing_is_inactive_in_every_paper_run() {
+    // Issue 23 (docs/design.md, "Merging that completes"): lane changes out of an ending
+    // lane fitted to the distance left, aborted when they no longer fit, the stop before
+    // the end, the one-sided edge. Scenario A's changes cross 4.5-70 m before the end,
+    // so none of it may act there (nor in B, which has no lane end): every record and
+    // trace is the same bits with it switched off.
+    let mut off = PaperOptions::default();
+    off.params.decision.merge.enabled = false;
+    for scenario in PaperScenario::ALL {
+        for style in Style::ALL {
+            for game in Game::ALL {
+                let (record, trace) = paper::run(scenario, style, game, &off).unwrap();
+                let (expected, expected_trace) = run(scenario, style, game);
+                assert_eq!(&record, expected, "{scenario:?} {style:?} {game:?}");
+                assert_eq!(&trace, expected_trace, "{scenario:?} {style:?} {game:?}");
+            }
+        }
+    }
+}
+
 /// `text` with its `[[vehicle]]` blocks in the order `order` gives (indices into the
 /// file's order).
 fn permuted(text: &str, order: impl Fn(usize) -> Vec<usize>) -> String {

@@ -11,10 +11,11 @@ use serde::{Deserialize, Serialize};
 use super::costs::{self, CostComponents};
 use super::field::{self, Field, FieldParams, Obstacle};
 use super::games::{Adjacent, Decision, DecisionParams, Game, LaneOption, Needs, Player, Situation};
+use super::merge::UnderWay;
 use super::mpc::{self, Mpc, MpcError, MpcParams, MpcProblem, MpcSolution};
 use super::prediction::{self, Kinematics, SpeedBounds};
 use super::styles::CostWeights;
-use crate::dynamics::Command;
+use crate::dynamics::{Command, LANE_CHANGE_DURATION};
 use crate::road::{LaneChange, LaneId};
 use crate::scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 
@@ -94,6 +95,23 @@ impl GtParams {
         if !(g.accel_min.is_finite() && g.accel_min < 0.0) {
             return Err(format!("decision.game.accel_min must be a number < 0, not {}", g.accel_min));
         }
+        let m = &self.decision.merge;
+        if !(m.min_duration.is_finite() && m.min_duration > 0.0 && m.min_duration <= LANE_CHANGE_DURATION) {
+            return Err(format!(
+                "decision.merge.min_duration must be a number in (0, {LANE_CHANGE_DURATION}] s, not {}",
+                m.min_duration
+            ));
+        }
+        for (key, value) in [
+            ("decision.merge.response_lag", m.response_lag),
+            ("decision.merge.end_margin", m.end_margin),
+            ("decision.merge.stop_margin", m.stop_margin),
+            ("decision.merge.crossing_speed", m.crossing_speed),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(format!("{key} must be a number >= 0, not {value}"));
+            }
+        }
         if p.samples == 0 {
             return Err("decision.prediction.samples must be at least 1".to_string());
         }
@@ -149,6 +167,14 @@ pub struct GtDriver {
     pub preview: Option<f64>,
     /// The last Delta u plan (the MPC's nominal path next time).
     pub plan: Vec<f64>,
+    /// The full-width duration (s) of the lane change under way, when it was shortened
+    /// to leave an ending lane in time (`merge`).
+    #[serde(default)]
+    pub pace: Option<f64>,
+    /// When (simulated s) the lane change under way out of an ending lane is predicted to
+    /// cross the lane line (`merge`).
+    #[serde(default)]
+    pub crossing_at: Option<f64>,
     /// What happened in the last plan.
     pub diagnostics: Diagnostics,
 }
@@ -163,6 +189,8 @@ impl GtDriver {
             decision: Decision::default(),
             preview: None,
             plan: Vec::new(),
+            pace: None,
+            crossing_at: None,
             diagnostics: Diagnostics::default(),
         }
     }
@@ -241,6 +269,16 @@ fn side_option(
 
 /// Car `id`'s situation as the EC of a game, and the adjacent car of each side.
 pub fn situation(scene: &Scene, id: VehicleId, params: &GtParams) -> (Situation, [Option<VehicleId>; 2]) {
+    situation_timed(scene, id, params, None)
+}
+
+/// `situation`, with the lane change under way (if any) timed as `under_way` says.
+fn situation_timed(
+    scene: &Scene,
+    id: VehicleId,
+    params: &GtParams,
+    under_way: Option<UnderWay>,
+) -> (Situation, [Option<VehicleId>; 2]) {
     let car = scene.car(id);
     let keep = LaneOption {
         sigma: 0,
@@ -253,11 +291,15 @@ pub fn situation(scene: &Scene, id: VehicleId, params: &GtParams) -> (Situation,
     let left = side_option(scene, id, LaneChange::Left, params);
     let right = side_option(scene, id, LaneChange::Right, params);
     let committed = Some(car.lane_change().sigma()).filter(|&c| c != 0);
+    let end = scene.road.lane_end(car.lane);
     let situation = Situation {
         ego: player(scene, car, car.lane, params),
         keep,
         sides: [left.map(|(o, _)| o), right.map(|(o, _)| o)],
         committed,
+        lane_end: (end < scene.road.length()).then_some(end - car.state.s),
+        under_way: under_way.filter(|_| committed.is_some()),
+        lateral_speed: car.state.vx * car.state.heading.sin() + car.state.vy * car.state.heading.cos(),
         lane_width: scene.road.lane_width(),
         car_length: scene.vehicle.length,
         period: scene.control_dt,
@@ -364,15 +406,21 @@ fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decisi
     Decision { accel, lane_change: LaneChange::Keep, exact: true, ..Decision::default() }
 }
 
-/// The field car `id` plans in: the other cars near it and the road's lines.
-fn field_around(scene: &Scene, id: VehicleId, params: &FieldParams) -> Field {
+/// The field car `id` plans in: the other cars near it and the road's lines (edges
+/// one-sided when `one_sided`).
+fn field_around(scene: &Scene, id: VehicleId, params: &FieldParams, one_sided: bool) -> Field {
     let me = scene.car(id).state.s;
     let obstacles = scene
         .around(me, params.range)
         .filter(|car| car.id != id)
         .map(|car| Obstacle { s: car.state.s, d: car.state.d, heading: car.state.heading, speed: car.speed() })
         .collect();
-    Field { params: *params, width: scene.vehicle.width, obstacles, lines: field::road_lines(&scene.road, params) }
+    Field {
+        params: *params,
+        width: scene.vehicle.width,
+        obstacles,
+        lines: field::road_lines(&scene.road, params, one_sided),
+    }
 }
 
 /// Plans Y_p toward `target` lane for car `id`, driven by `gt`, at acceleration `accel`
@@ -385,13 +433,27 @@ pub fn plan_motion(
     target: LaneId,
     mpc: Option<&mut Mpc>,
 ) -> Result<MpcSolution, MpcError> {
+    plan_motion_with(scene, id, gt, &gt.params.mpc, accel, target, mpc)
+}
+
+/// `plan_motion` with the MPC's constants `mpc_params` (a shortened lane change moves its
+/// preview point faster).
+fn plan_motion_with(
+    scene: &Scene,
+    id: VehicleId,
+    gt: &GtDriver,
+    mpc_params: &MpcParams,
+    accel: f64,
+    target: LaneId,
+    mpc: Option<&mut Mpc>,
+) -> Result<MpcSolution, MpcError> {
     let params = &gt.params;
     let car = scene.car(id);
-    let field = field_around(scene, id, &params.field);
+    let field = field_around(scene, id, &params.field, params.decision.merge.enabled);
     let road = &scene.road;
     let w = road.lane_width();
     let rightmost = road.lane_center(LaneId(road.lane_count() as u32 - 1));
-    let margin = params.mpc.preview_margin;
+    let margin = mpc_params.preview_margin;
     let problem = MpcProblem {
         state: car.state,
         accel,
@@ -406,15 +468,19 @@ pub fn plan_motion(
         preview_bounds: (rightmost - margin.min(w), margin.min(w)),
     };
     match mpc {
-        Some(mpc) => mpc.solve(&problem, &params.mpc),
-        None => mpc::solve(&problem, &params.mpc),
+        Some(mpc) => mpc.solve(&problem, mpc_params),
+        None => mpc::solve(&problem, mpc_params),
     }
 }
 
 /// What car `id`, driven by `gt`, decides this period in its role.
 pub fn decide(scene: &Scene, id: VehicleId, gt: &GtDriver) -> Decision {
     match gt.role {
-        Role::Leader => expert_decision(scene, id, gt.game, &gt.params),
+        Role::Leader => {
+            let pace = gt.pace.unwrap_or(LANE_CHANGE_DURATION);
+            let under_way = UnderWay { pace, crossing_in: gt.crossing_at.map(|t| t - scene.time) };
+            situation_timed(scene, id, &gt.params, Some(under_way)).0.decide(gt.game, &gt.params.decision)
+        }
         Role::Follower => follow(scene, id, gt.game, &gt.params),
     }
 }
@@ -424,13 +490,26 @@ pub fn decide(scene: &Scene, id: VehicleId, gt: &GtDriver) -> Decision {
 pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) -> GtStep {
     let car = scene.car(id);
     let decision = decide(scene, id, gt);
-    let starts = decision.lane_change != LaneChange::Keep && car.target_lane == car.lane && gt.role == Role::Leader;
+    let leads = gt.role == Role::Leader;
+    let starts = decision.lane_change != LaneChange::Keep && car.target_lane == car.lane && leads;
+    let aborts = decision.aborted && car.target_lane != car.lane && leads;
     let target = if starts { scene.lane_beside(car.lane, decision.lane_change) } else { None };
-    let target = target.unwrap_or(car.target_lane);
+    let target = if aborts { car.lane } else { target.unwrap_or(car.target_lane) };
     let mut driver = GtDriver::clone(gt);
     driver.decision = decision;
+    // What the driver remembers of a change under way (`merge`): its pace and when it
+    // crosses the line.
+    let under_way = (starts || car.target_lane != car.lane) && !aborts;
+    driver.pace = decision.duration.filter(|_| under_way);
+    driver.crossing_at = decision.crossing.filter(|_| under_way).map(|t| scene.time + t);
     driver.diagnostics.inexact += u32::from(!decision.exact);
-    match plan_motion(scene, id, gt, decision.accel, target, mpc) {
+    // A shortened change (`merge`) moves the preview point as much faster: Delta u_max of
+    // eq. (27) is sized for `LANE_CHANGE_DURATION`.
+    let mut mpc_params = gt.params.mpc;
+    if let Some(duration) = decision.duration.filter(|&t| t < LANE_CHANGE_DURATION) {
+        mpc_params.max_step *= LANE_CHANGE_DURATION / duration;
+    }
+    match plan_motion_with(scene, id, gt, &mpc_params, decision.accel, target, mpc) {
         Ok(solution) => {
             driver.preview = Some(solution.preview);
             driver.plan = solution.plan;
@@ -456,6 +535,8 @@ fn fallback(scene: &Scene, id: VehicleId, mut driver: GtDriver, error: &MpcError
     driver.decision = Decision { accel, lane_change: LaneChange::Keep, exact: false, ..driver.decision };
     driver.preview = Some(preview);
     driver.plan.clear();
+    driver.pace = None;
+    driver.crossing_at = None;
     driver.diagnostics.fallback = Some(error.to_string());
     driver.diagnostics.fallbacks += 1;
     driver.diagnostics.iterations = 0;

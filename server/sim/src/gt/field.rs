@@ -76,6 +76,22 @@ pub struct Line {
     pub from: f64,
     /// See `from`.
     pub to: f64,
+    /// Which side of it the road is, for an edge drawn one-sided: +1 at larger d, -1 at
+    /// smaller; 0 for a lane line or an edge whose field is symmetric (eq. 21 as written).
+    pub road_side: i8,
+}
+
+impl Line {
+    /// d of eq. (21) at offset `d`: the distance to the line; beyond a one-sided edge (off
+    /// the road), zero: the field stays at its value on the edge, so it neither pulls a
+    /// plan further off the road nor pushes one across a lane line.
+    #[inline]
+    pub fn distance(&self, d: f64) -> f64 {
+        match self.road_side {
+            0 => (d - self.d).abs(),
+            side => (f64::from(side) * (d - self.d)).max(0.0),
+        }
+    }
 }
 
 /// Eq. (20): the field of one obstacle at (s, d).
@@ -101,19 +117,25 @@ pub(crate) fn road_field(p: &FieldParams, width: f64, peak: f64, distance: f64) 
 }
 
 /// The lane lines and edges of a road: a boundary between two lanes is a lane line where
-/// both exist and an edge where only one does.
-pub fn road_lines(road: &Road, p: &FieldParams) -> Vec<Line> {
+/// both exist and an edge where only one does. With `one_sided`, an edge's field is flat
+/// off the road (`Line::distance`): past a lane's end the edge then does not hold a
+/// merging car's plan back in the ended lane (docs/design.md, "Merging that completes").
+pub fn road_lines(road: &Road, p: &FieldParams, one_sided: bool) -> Vec<Line> {
     let (w, n) = (road.lane_width(), road.lane_count());
     let end = |lane: usize| road.lane_end(LaneId(lane as u32));
+    let side = |road_side: i8| if one_sided { road_side } else { 0 };
     let mut lines = Vec::with_capacity(2 * n + 1);
-    lines.push(Line { d: 0.5 * w, peak: p.edge_peak, from: 0.0, to: end(0) });
+    lines.push(Line { d: 0.5 * w, peak: p.edge_peak, from: 0.0, to: end(0), road_side: side(-1) });
     for j in 1..n {
         let d = -(j as f64 - 0.5) * w;
         let (both, one) = (end(j - 1).min(end(j)), end(j - 1).max(end(j)));
-        lines.push(Line { d, peak: p.line_peak, from: 0.0, to: both });
-        lines.push(Line { d, peak: p.edge_peak, from: both, to: one });
+        // Past `both` only the longer lane is road: the one above (larger d) or below.
+        let road_side = if end(j - 1) >= end(j) { 1 } else { -1 };
+        lines.push(Line { d, peak: p.line_peak, from: 0.0, to: both, road_side: 0 });
+        lines.push(Line { d, peak: p.edge_peak, from: both, to: one, road_side: side(road_side) });
     }
-    lines.push(Line { d: -(n as f64 - 0.5) * w, peak: p.edge_peak, from: 0.0, to: end(n - 1) });
+    let right = Line { d: -(n as f64 - 0.5) * w, peak: p.edge_peak, from: 0.0, to: end(n - 1), road_side: side(1) };
+    lines.push(right);
     lines
 }
 
@@ -140,7 +162,7 @@ impl Field {
             .lines
             .iter()
             .filter(|line| (line.from..=line.to).contains(&s))
-            .map(|line| road_field(p, self.width, line.peak, (d - line.d).abs()))
+            .map(|line| road_field(p, self.width, line.peak, line.distance(d)))
             .sum();
         cars + road // eq. (19)
     }
@@ -193,7 +215,7 @@ mod tests {
             &[(LaneId(1), 200.0)],
         );
         let p = FieldParams::default();
-        let lines = road_lines(&road, &p);
+        let lines = road_lines(&road, &p, false);
         let at =
             |s: f64, d: f64| lines.iter().filter(move |l| l.d == d && (l.from..=l.to).contains(&s)).map(|l| l.peak);
         assert_eq!(at(100.0, -2.0).collect::<Vec<_>>(), vec![p.line_peak]);
@@ -206,7 +228,7 @@ mod tests {
     fn road_field_is_eq_21_and_grows_toward_its_line() {
         let p = FieldParams::default();
         assert!((road_field(&p, 2.0, 2.0, 1.3) - 2.0).abs() < 1e-12); // d = d-dagger + W/2
-        let line = Line { d: 2.0, peak: 1.0, from: 0.0, to: 100.0 };
+        let line = Line { d: 2.0, peak: 1.0, from: 0.0, to: 100.0, road_side: 0 };
         let field = Field { params: p, width: 2.0, obstacles: vec![], lines: vec![line] };
         let (value, ds, dd) = field.gradient(50.0, 0.5, 0.0);
         assert!((value - road_field(&p, 2.0, 1.0, 1.5)).abs() < 1e-12);

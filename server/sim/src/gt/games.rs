@@ -10,6 +10,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::costs::{self, CostComponents, CostParams};
+use super::merge::{self, Crossing, MergeParams, UnderWay};
 use super::prediction::{self, Kinematics, PredictionParams, SpeedBounds};
 use super::styles::CostWeights;
 use crate::dynamics::{LANE_CHANGE_DURATION, LateralPath};
@@ -282,6 +283,14 @@ pub struct Situation {
     pub sides: [Option<LaneOption>; 2],
     /// The side of a lane change under way: EC then chooses only its acceleration.
     pub committed: Option<i8>,
+    /// Distance from EC's centre to the end of its lane (m), if the lane ends before the
+    /// road does: a lane change out of it must cross the line before (`merge`).
+    pub lane_end: Option<f64>,
+    /// How the lane change under way is timed, from the driver's memory (`merge`); `None`:
+    /// at `LANE_CHANGE_DURATION`, its crossing unknown.
+    pub under_way: Option<UnderWay>,
+    /// EC's lateral speed (m/s, + to the left), for a change under way that is late.
+    pub lateral_speed: f64,
     /// Lane width (m), for a_y of eq. (13).
     pub lane_width: f64,
     /// l_v of eq. (11c)/(12c): one car length (m).
@@ -299,6 +308,9 @@ pub struct DecisionParams {
     pub prediction: PredictionParams,
     /// Strategy sets and equilibrium options.
     pub game: GameParams,
+    /// Lane changes out of an ending lane (docs/design.md, "Merging that completes").
+    #[serde(default)]
+    pub merge: MergeParams,
 }
 
 /// What a game decided for EC.
@@ -317,6 +329,18 @@ pub struct Decision {
     /// False when Nash had no pure equilibrium (EC then kept its current lane decision)
     /// or the driver fell back to its safe command.
     pub exact: bool,
+    /// The full-width duration (s) of the chosen lane change when it was shortened from
+    /// `LANE_CHANGE_DURATION` to cross the line before EC's lane ends (`merge`).
+    #[serde(default)]
+    pub duration: Option<f64>,
+    /// Seconds to the lane line predicted for the chosen lane change out of an ending
+    /// lane (`merge`): what the driver remembers of it while it is under way.
+    #[serde(default)]
+    pub crossing: Option<f64>,
+    /// Whether EC gives up the lane change under way: it can no longer cross the line
+    /// before its lane ends, and can still stop in its lane (`merge`).
+    #[serde(default)]
+    pub aborted: bool,
 }
 
 /// One side's game, built: the actions and the tables.
@@ -393,6 +417,8 @@ struct Cell<'a> {
 /// The predicted samples every entry of a side's tables reads.
 struct Samples {
     ec: Vec<Vec<Kinematics>>,
+    /// Per EC action, the full-width duration of its lane change (s).
+    durations: Vec<f64>,
     ac: Vec<Vec<Kinematics>>,
     leader: Vec<Kinematics>,
     lead: Vec<Kinematics>,
@@ -425,15 +451,107 @@ impl Situation {
 
     /// The lateral path of a lane change to `option` starting now, shortened in
     /// proportion when part of the way is already done.
-    fn lane_change_path(&self, option: &LaneOption) -> LateralPath {
+    fn lane_change_path(&self, option: &LaneOption, duration: f64) -> LateralPath {
         let remaining = ((option.centre - self.ego.now.d).abs() / self.lane_width).clamp(0.25, 1.0);
-        LateralPath { from: self.ego.now.d, to: option.centre, start: 0.0, duration: LANE_CHANGE_DURATION * remaining }
+        LateralPath { from: self.ego.now.d, to: option.centre, start: 0.0, duration: duration * remaining }
+    }
+
+    /// A lane change to `option` out of EC's ending lane, if its lane ends.
+    fn crossing(&self, option: &LaneOption) -> Option<Crossing> {
+        let left = self.lane_end?;
+        let (origin, from, to, lateral_speed) = (self.keep.centre, self.ego.now.d, option.centre, self.lateral_speed);
+        Some(Crossing { origin, from, lateral_speed, to, line: 0.5 * (origin + to), left, width: self.lane_width })
+    }
+
+    /// The full-width duration of EC's action (accel, sigma): `LANE_CHANGE_DURATION` (or
+    /// the pace of the change under way), or out of an ending lane the longest that
+    /// crosses the line in time; `None` when none does (`merge`).
+    fn fitted_duration(&self, accel: f64, sigma: i8, params: &DecisionParams) -> Option<f64> {
+        let under_way = self.timing(sigma);
+        let longest = under_way.map_or(LANE_CHANGE_DURATION, |u| u.pace);
+        let option = self.option(sigma).filter(|_| sigma != 0 && params.merge.enabled);
+        let Some((option, crossing)) = option.and_then(|o| Some((o, self.crossing(o)?))) else {
+            return Some(longest);
+        };
+        let (speed, bounds, m) = (self.ego.now.speed, self.ego_bounds(option, &params.game), &params.merge);
+        match under_way {
+            Some(u) => crossing.fit(m, longest, |t| crossing.time_under_way(u, t), speed, accel, bounds),
+            None => crossing.fit(m, longest, |t| crossing.time_from_rest(m, t), speed, accel, bounds),
+        }
+    }
+
+    /// The timing of the lane change under way to side `sigma`, if it is one.
+    fn timing(&self, sigma: i8) -> Option<UnderWay> {
+        let default = UnderWay { pace: LANE_CHANGE_DURATION, crossing_in: None };
+        (sigma != 0 && self.binding() == Some(sigma)).then(|| self.under_way.unwrap_or(default))
+    }
+
+    /// Seconds to the lane line predicted for EC's action (accel, sigma) at full-width
+    /// `duration`, for a lane change out of an ending lane (`merge`): from rest for one that
+    /// starts, the remembered prediction rescaled for one under way.
+    fn crossing_time(&self, sigma: i8, duration: f64, params: &DecisionParams) -> Option<f64> {
+        let option = self.option(sigma).filter(|_| sigma != 0 && params.merge.enabled)?;
+        let crossing = self.crossing(option)?;
+        match self.timing(sigma) {
+            // What was predicted, at the new pace: past due stays past due.
+            Some(u) => u.crossing_in.map(|t| t * duration / u.pace),
+            None => Some(crossing.time_from_rest(&params.merge, duration)),
+        }
+    }
+
+    /// The duration EC's action is predicted with: fitted, or where nothing fits (a change
+    /// kept only because EC can stop neither), the shortest.
+    fn duration(&self, accel: f64, sigma: i8, params: &DecisionParams) -> f64 {
+        self.fitted_duration(accel, sigma, params).unwrap_or(params.merge.min_duration.min(LANE_CHANGE_DURATION))
+    }
+
+    /// Whether EC, in an ending lane, is more than a quarter lane off its lane's centre
+    /// while it changes no lane and still drives at `crossing_speed` or more: back from an
+    /// aborted change. It starts none until it has settled (or nearly stopped, when it
+    /// can no longer move sideways), so that it does not turn back at once into the change
+    /// it gave up (`merge`).
+    fn unsettled(&self, params: &DecisionParams) -> bool {
+        let off = (self.ego.now.d - self.keep.centre).abs() > 0.25 * self.lane_width;
+        let m = &params.merge;
+        m.enabled && self.lane_end.is_some() && off && self.ego.now.speed >= m.crossing_speed
+    }
+
+    /// Whether EC can still stop `margin` short of its lane's end, braking at a_min.
+    fn can_stop(&self, params: &DecisionParams, margin: f64) -> bool {
+        let brake = -params.game.accel_min;
+        self.lane_end.is_none_or(|left| merge::can_stop(self.ego.now.speed, brake, left, margin))
+    }
+
+    /// Of the accelerations `grid` that keep EC's lane, those after one control period of
+    /// which EC can still stop `stop_margin` short of its lane's end braking at a_min; all
+    /// of them if its lane does not end or none can (`merge`).
+    fn keeping(&self, grid: Vec<f64>, params: &DecisionParams) -> Vec<f64> {
+        let Some(left) = self.lane_end.filter(|_| params.merge.enabled) else { return grid };
+        let (speed, dt, brake) = (self.ego.now.speed, self.period, -params.game.accel_min);
+        let bounds = SpeedBounds { min: params.game.speed_min, max: f64::INFINITY };
+        let stops = |a: f64| {
+            let (ds, v) = prediction::advance(speed, a, bounds, dt);
+            merge::can_stop(v, brake, left - ds, params.merge.stop_margin)
+        };
+        if grid.iter().any(|&a| stops(a)) { grid.into_iter().filter(|&a| stops(a)).collect() } else { grid }
+    }
+
+    /// The lane change under way, while it binds: its lane is still an option.
+    fn binding(&self) -> Option<i8> {
+        self.committed.filter(|&c| self.option(c).is_some())
     }
 
     /// EC's actions for the game of side `side` (-1 or +1). A lane change under way
     /// binds only while its lane is still an option.
-    fn ec_actions(&self, side: i8, params: &GameParams) -> Vec<(f64, i8)> {
-        let committed = self.committed.filter(|&c| self.option(c).is_some());
+    ///
+    /// Out of an ending lane (`merge`), a lane change that cannot cross the line before
+    /// the end is no action, unless EC can stop short of the end in none of them either
+    /// (then they all stay, at the shortest duration). A change under way none of whose
+    /// accelerations crosses in time is aborted if EC can still stop: its actions are
+    /// those that keep the lane.
+    fn ec_actions(&self, side: i8, params: &DecisionParams) -> Vec<(f64, i8)> {
+        let game = &params.game;
+        let committed = self.binding();
         let sigmas: &[i8] = match committed {
             Some(c) if c == side => &[side][..],
             Some(_) => &[],
@@ -443,8 +561,33 @@ impl Situation {
         let mut actions = Vec::new();
         for &sigma in sigmas {
             let Some(option) = self.option(sigma) else { continue };
-            let bounds = self.ego_bounds(option, params);
-            actions.extend(params.grid(self.ego.now.speed, bounds, self.period).into_iter().map(|a| (a, sigma)));
+            let bounds = self.ego_bounds(option, game);
+            let grid = game.grid(self.ego.now.speed, bounds, self.period);
+            if sigma == 0 {
+                actions.extend(self.keeping(grid, params).into_iter().map(|a| (a, 0)));
+                continue;
+            }
+            if committed.is_none() && self.unsettled(params) {
+                continue;
+            }
+            let fits: Vec<f64> =
+                grid.iter().copied().filter(|&a| self.fitted_duration(a, sigma, params).is_some()).collect();
+            // A change under way is given up if EC can still stop before the end; one is
+            // not started if EC can stop with room to pull out later.
+            let m = &params.merge;
+            let stops = fits.is_empty()
+                && self.can_stop(params, if committed.is_some() { m.end_margin } else { m.stop_margin });
+            if stops && committed.is_some() {
+                // Abort: brake in the lane instead (the game of the lane kept).
+                let keep = game.grid(self.ego.now.speed, self.ego_bounds(&self.keep, game), self.period);
+                actions.extend(self.keeping(keep, params).into_iter().map(|a| (a, 0)));
+            } else if stops {
+                continue;
+            } else if fits.is_empty() {
+                actions.extend(grid.into_iter().map(|a| (a, sigma)));
+            } else {
+                actions.extend(fits.into_iter().map(|a| (a, sigma)));
+            }
         }
         actions
     }
@@ -452,7 +595,7 @@ impl Situation {
     /// Builds the game of side `side` (eq. 16c–f / 18c–f) with AC's cost table and the
     /// cells of EC's that `needs` asks for.
     pub fn side_game(&self, side: i8, params: &DecisionParams, needs: Needs) -> SideGame {
-        let ec_actions = self.ec_actions(side, &params.game);
+        let ec_actions = self.ec_actions(side, params);
         let option = self.option(side).copied();
         let adjacent = option.and_then(|o| o.adjacent);
         let ac_actions =
@@ -584,13 +727,16 @@ impl Situation {
         params: &DecisionParams,
     ) -> Samples {
         let p = &params.prediction;
+        let durations: Vec<f64> =
+            ec_actions.iter().map(|&(accel, sigma)| self.duration(accel, sigma, params)).collect();
         let ec = ec_actions
             .iter()
-            .map(|&(accel, sigma)| {
+            .zip(&durations)
+            .map(|(&(accel, sigma), &duration)| {
                 let mut out = Vec::new();
                 let target = self.option(sigma).unwrap_or(&self.keep);
                 let bounds = self.ego_bounds(target, &params.game);
-                let path = (sigma != 0).then(|| self.lane_change_path(target));
+                let path = (sigma != 0).then(|| self.lane_change_path(target, duration));
                 prediction::predict(p, self.ego.now, accel, bounds, path.as_ref(), &mut out);
                 out
             })
@@ -609,6 +755,7 @@ impl Situation {
         };
         Samples {
             ec,
+            durations,
             ac,
             leader: constant_speed(p, self.keep.leader),
             lead: constant_speed(p, self.keep.lead),
@@ -698,7 +845,7 @@ impl Situation {
         let ec_path = &samples.ec[row];
         let ac_path = samples.ac.get(col);
         let target = self.option(sigma).unwrap_or(&self.keep);
-        let lateral_accel = prediction::lane_change_accel(self.lane_width);
+        let lateral_accel = prediction::lane_change_accel_over(self.lane_width, samples.durations[row]);
         let ec_comfort = costs::comfort(c, sigma, accel, lateral_accel);
         let mut ec_sum = CostComponents::default();
         for (k, &ego) in ec_path.iter().enumerate() {
@@ -829,6 +976,11 @@ impl Situation {
         let (accel, sigma) = side_game.ec_actions[profile.row];
         let response = side_game.option.and_then(|o| o.adjacent).map(|_| side_game.ac_actions[profile.col]);
         let predicted = self.components(&side_game, profile, params);
-        Decision { accel, lane_change: LaneChange::from_sigma(sigma), predicted, cost, response, exact: profile.exact }
+        let full = self.duration(accel, sigma, params);
+        let duration = Some(full).filter(|&t| sigma != 0 && t < LANE_CHANGE_DURATION);
+        let crossing = self.crossing_time(sigma, full, params);
+        let aborted = sigma == 0 && self.binding().is_some();
+        let (lane_change, exact) = (LaneChange::from_sigma(sigma), profile.exact);
+        Decision { accel, lane_change, predicted, cost, response, exact, duration, crossing, aborted }
     }
 }

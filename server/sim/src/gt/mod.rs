@@ -10,7 +10,8 @@
 //!
 //! One concern per file: `styles` (Table III), `costs` (eq. 9–14), `prediction` (motion
 //! over the decision horizon), `games` (eq. 15–18), `field` (eq. 19–21), `mpc` (eq.
-//! 22–29), `driver` (reading the scene, the follower role, the fallback).
+//! 22–29), `merge` (lane changes out of an ending lane that complete), `driver` (reading
+//! the scene, the follower role, the fallback).
 //!
 //! ```
 //! use arena_sim::{Game, expert_decision, stage_cost};
@@ -29,6 +30,7 @@ mod costs;
 mod driver;
 mod field;
 mod games;
+mod merge;
 mod mpc;
 mod prediction;
 mod styles;
@@ -43,6 +45,7 @@ pub use field::FieldParams;
 #[cfg(test)]
 use games::Needs;
 pub use games::{AdjacentLateral, Decision, DecisionParams, Game, GameParams};
+pub use merge::MergeParams;
 pub use mpc::{Mpc, MpcError, MpcParams, MpcSolution};
 pub use prediction::PredictionParams;
 pub use styles::{CostWeights, StyleProfile};

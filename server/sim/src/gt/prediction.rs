@@ -5,7 +5,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::dynamics::{LANE_CHANGE_DURATION, LateralPath};
+use crate::dynamics::LateralPath;
 
 /// A car at one instant, in the road's Frenet frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
@@ -43,11 +43,12 @@ impl PredictionParams {
     }
 }
 
-/// Peak lateral acceleration of one lane change of `width` along the quintic path of
-/// `LANE_CHANGE_DURATION` T (m/s^2): 10 / sqrt(3) * width / T^2. This is a_y of eq. (13)
-/// for sigma != 0.
-pub fn lane_change_accel(width: f64) -> f64 {
-    10.0 / 3f64.sqrt() * width.abs() / (LANE_CHANGE_DURATION * LANE_CHANGE_DURATION)
+/// Peak lateral acceleration of one lane change of `width` along a quintic path of
+/// `duration` T (m/s^2): 10 / sqrt(3) * width / T^2. This is a_y of eq. (13) for sigma != 0:
+/// T = `LANE_CHANGE_DURATION`, or shorter for a change fitted to leave an ending lane in
+/// time (`merge`).
+pub fn lane_change_accel_over(width: f64, duration: f64) -> f64 {
+    10.0 / 3f64.sqrt() * width.abs() / (duration * duration)
 }
 
 /// Speed bounds of eq. (15)'s constraints (m/s).
@@ -105,6 +106,7 @@ pub fn feasible_accel(accel: f64, speed: f64, bounds: SpeedBounds, dt: f64) -> f
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dynamics::LANE_CHANGE_DURATION;
 
     const BOUNDS: SpeedBounds = SpeedBounds { min: 0.0, max: 25.0 };
 
@@ -135,7 +137,7 @@ mod tests {
             .map(|k| k as f64 * 1e-3)
             .map(|t| (path.offset_at(t + h) - 2.0 * path.offset_at(t) + path.offset_at(t - h)).abs() / (h * h))
             .fold(0.0, f64::max);
-        assert!((peak - lane_change_accel(4.0)).abs() < 1e-3, "{peak}");
+        assert!((peak - lane_change_accel_over(4.0, LANE_CHANGE_DURATION)).abs() < 1e-3, "{peak}");
     }
 
     #[test]

@@ -264,6 +264,12 @@ fn defaults_are_the_documented_ones() {
         (p.interaction.interaction_range, p.interaction.lane_end_time, p.interaction.fallback_brake),
         (60.0, 8.0, 3.0)
     );
+    let m = p.decision.merge;
+    assert!(m.enabled);
+    assert_eq!(
+        [m.min_duration, m.response_lag, m.end_margin, m.stop_margin, m.crossing_speed],
+        [3.0, 0.5, 1.0, 5.0, 2.0]
+    );
 }
 
 #[test]
@@ -314,6 +320,7 @@ fn the_expert_of_a_gt_car_is_its_own_planned_decision_with_its_own_tolerance() {
 /// now and then. Drawn from `next` (uniform in [0, 1)).
 fn random_situation(next: &mut impl FnMut() -> f64) -> super::games::Situation {
     use super::games::{Adjacent, LaneOption, Player, Situation};
+    use super::merge::UnderWay;
     use super::prediction::{Kinematics, SpeedBounds};
     let style = |x: f64| Style::ALL[((x * 3.0) as usize).min(2)];
     let car = |s: f64, d: f64, speed: f64| Kinematics { s, d, speed };
@@ -352,7 +359,19 @@ fn random_situation(next: &mut impl FnMut() -> f64) -> super::games::Situation {
         x if x < 0.2 => Some(1),
         _ => None,
     };
-    Situation { ego, keep, sides, committed, lane_width: 4.0, car_length: 5.0, period: 0.1 }
+    Situation {
+        ego,
+        keep,
+        sides,
+        committed,
+        // Now and then EC's lane ends ahead, and a change under way has a predicted crossing.
+        lane_end: (next() < 0.3).then(|| 5.0 + 100.0 * next()),
+        under_way: (next() < 0.5).then(|| UnderWay { pace: 3.0 + next(), crossing_in: Some(3.0 * next() - 0.5) }),
+        lateral_speed: 2.0 * next() - 0.5,
+        lane_width: 4.0,
+        car_length: 5.0,
+        period: 0.1,
+    }
 }
 
 #[test]
@@ -380,4 +399,173 @@ fn the_fast_search_decides_exactly_as_the_full_tables_do() {
         }
     }
     assert!(lane_changes > 500, "the situations exercise lane changes too: {lane_changes}");
+}
+
+// Merging that completes (issue 23; docs/design.md, "Merging that completes").
+
+/// How a merge-random episode ended, as server/src/env/episode.rs says it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum EndReason {
+    Collision,
+    OffRoad,
+    LaneEnd,
+    RoadEnd,
+    TimeLimit,
+}
+
+/// One episode of scenarios/merge-random.toml as `arena eval --policy gt:<style>:<game>`
+/// runs it (the env's reset and `drive_learners`): the seed seeds the seeds, whose first
+/// draw seeds the `[vary]` draws and the world; the learner becomes a `gt` leader of
+/// `style` playing `game` with constants `params` (`arena eval`'s: the defaults); 0.1 s steps until it stops driving
+/// or `max_cycles`. Returns how it ended, whether that is a success (ended on the road in
+/// a `[goal]` lane, ahead of the `ahead_of` cars), and whether a lane change was shortened.
+fn merge_random_episode(seed: u64, style: Style, game: Game, params: GtParams) -> (EndReason, bool, bool) {
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use crate::scenario::DriverSpec;
+    let scenario = crate::scenario::builtin_scenario("merge-random").unwrap().unwrap();
+    let world_seed = ChaCha8Rng::seed_from_u64(seed).next_u64();
+    let mut episode = scenario.episode(&mut ChaCha8Rng::seed_from_u64(world_seed), &[]).unwrap();
+    for vehicle in episode.vehicles.iter_mut().filter(|v| matches!(v.driver, DriverSpec::Agent(_))) {
+        vehicle.style = style;
+        vehicle.driver = DriverSpec::Gt { game, role: Role::Leader, params };
+    }
+    let mut world = episode.build(world_seed);
+    world.set_decision_threads(1);
+    let ec = world.find("ec_0").unwrap();
+    let mut shortened = false;
+    let mut end = EndReason::TimeLimit;
+    for _ in 0..episode.max_cycles {
+        for _ in 0..(episode.step_dt / world.params().physics_dt).round() as u64 {
+            world.tick();
+            if let Driver::Gt(gt) = &world.vehicle(ec).driver {
+                shortened |= gt.decision.duration.is_some();
+            }
+        }
+        let v = world.vehicle(ec);
+        let road = world.road();
+        let ended = match v.status {
+            Status::Driving => None,
+            Status::Crashed => Some(EndReason::Collision),
+            Status::Exited => Some(EndReason::RoadEnd),
+            Status::OffRoad => {
+                let lane = road.nearest_lane(v.state.d);
+                let within = (v.state.d - road.lane_center(lane)).abs() <= road.lane_width() / 2.0;
+                Some(if within && v.state.s > road.lane_end(lane) { EndReason::LaneEnd } else { EndReason::OffRoad })
+            }
+        };
+        if let Some(ended) = ended {
+            end = ended;
+            break;
+        }
+    }
+    let v = world.vehicle(ec);
+    let goal = &episode.goal;
+    let ahead = goal.ahead_of.iter().all(|n| world.find(n).is_none_or(|o| v.state.s > world.vehicle(o).state.s));
+    let in_lane = goal.lanes.is_empty() || goal.lanes.contains(&world.current_lane(ec));
+    let success = matches!(end, EndReason::TimeLimit | EndReason::RoadEnd) && in_lane && ahead;
+    (end, success, shortened)
+}
+
+/// Seed 0 and every seed of merge-random on which one of the six policies failed (each
+/// at the lane end) before issue 23, or while it was worked on (4, 23, 98).
+const MERGE_SEEDS: [u64; 50] = [
+    0, 1, 2, 4, 5, 6, 7, 9, 14, 15, 18, 21, 23, 28, 29, 31, 33, 34, 36, 38, 39, 40, 41, 45, 46, 47, 48, 50, 53, 54, 55,
+    57, 58, 59, 64, 66, 68, 69, 70, 72, 76, 77, 79, 81, 85, 87, 90, 91, 92, 98,
+];
+
+/// Every seed of `MERGE_SEEDS` with EC of `style`, both games: each a success, none at
+/// the lane end. Returns how many episodes shortened a lane change.
+fn merges_complete(style: Style) -> usize {
+    let mut shortened = 0;
+    for game in Game::ALL {
+        for seed in MERGE_SEEDS {
+            let (end, success, short) = merge_random_episode(seed, style, game, GtParams::default());
+            assert!(success && end != EndReason::LaneEnd, "gt:{}:{} seed {seed}: {end:?}", style.name(), game.name());
+            shortened += usize::from(short);
+        }
+    }
+    shortened
+}
+
+#[test]
+fn the_aggressive_merge_completes_on_the_seeds_that_failed() {
+    assert!(merges_complete(Style::Aggressive) > 0, "some change was shortened to fit");
+}
+
+#[test]
+fn the_normal_merge_completes_on_the_seeds_that_failed() {
+    // Seed 0 was the clean example: committed at 10.4 s with 15 m left at 7.6 m/s.
+    assert!(merges_complete(Style::Normal) > 0, "some change was shortened to fit");
+}
+
+#[test]
+fn the_conservative_merge_completes_on_the_seeds_that_failed() {
+    merges_complete(Style::Conservative);
+}
+
+#[test]
+fn a_change_under_way_that_can_no_longer_cross_in_time_is_aborted_into_braking() {
+    // EC at 7 m/s 12 m before its lane ends, committed to lane 0, its crossing predicted
+    // 4 s away (it fell behind): no acceleration crosses 1 m before the end at 2 m/s or
+    // more, even at the 3 s pace; braking at 4 m/s^2 it stops 6 m short. It gives the
+    // change up: back to its lane, braking.
+    let road = Road::new(
+        Pose { x: 0.0, y: 0.0, heading: 0.0 },
+        vec![Section::Straight { length: 1000.0 }],
+        4.0,
+        vec![25.0, 25.0],
+        &[(LaneId(1), 112.0)],
+    );
+    let mut world = world_with(road, &[("ec", 1, 100.0, 7.0, Style::Normal, gt(Game::Nash, Role::Leader))]);
+    world.change_lane(VehicleId(0), LaneId(0));
+    let Driver::Gt(mut driver) = world.vehicle(VehicleId(0)).driver.clone() else { unreachable!() };
+    driver.crossing_at = Some(world.time() + 4.0);
+    let step = plan(world.scene(), VehicleId(0), &driver, None);
+    let decision = step.driver.decision;
+    assert!(decision.aborted && decision.lane_change == LaneChange::Keep, "{decision:?}");
+    assert!(decision.accel < 0.0, "{decision:?}");
+    assert_eq!(step.change_to, Some(LaneId(1)));
+    assert_eq!((step.driver.pace, step.driver.crossing_at), (None, None));
+    // On schedule (crossing in 1.5 s: 10.5 m at 7 m/s) it carries on.
+    driver.crossing_at = Some(world.time() + 1.5);
+    let step = plan(world.scene(), VehicleId(0), &driver, None);
+    assert!(!step.driver.decision.aborted && step.change_to.is_none(), "{:?}", step.driver.decision);
+    assert!(step.driver.crossing_at.is_some());
+    // Driven on from the late change: it gives it up, brakes, and merges after all, from
+    // a lower speed, without leaving the road.
+    world.vehicle_mut(VehicleId(0)).driver =
+        Driver::Gt(Box::new(GtDriver { crossing_at: Some(world.time() + 4.0), ..*driver }));
+    let mut aborted = false;
+    for _ in 0..100 {
+        world.advance(world.params().control_dt);
+        let v = world.vehicle(VehicleId(0));
+        assert_eq!(v.status, Status::Driving, "t = {:.1}: {:?}", world.time(), v.state);
+        if let Driver::Gt(gt) = &v.driver {
+            aborted |= gt.decision.aborted;
+        }
+    }
+    assert!(aborted);
+    assert_eq!(world.current_lane(VehicleId(0)), LaneId(0));
+}
+
+#[test]
+fn without_the_merge_timing_seed_0_runs_past_the_end_again() {
+    // The flag off is the AV before issue 23: seed 0 (normal, Nash) commits at 10.4 s with
+    // 15 m left and passes the end short of the line.
+    let mut off = GtParams::default();
+    off.decision.merge.enabled = false;
+    assert_eq!(merge_random_episode(0, Style::Normal, Game::Nash, off).0, EndReason::LaneEnd);
+}
+
+#[test]
+fn the_merge_constants_are_checked() {
+    let mut params = GtParams::default();
+    assert!(params.check().is_ok());
+    params.decision.merge.min_duration = 5.0;
+    assert!(params.check().unwrap_err().contains("decision.merge.min_duration"));
+    params.decision.merge.min_duration = 3.0;
+    params.decision.merge.stop_margin = -1.0;
+    assert!(params.check().unwrap_err().contains("decision.merge.stop_margin"));
 }

@@ -5,7 +5,7 @@ use crate::road::Road;
 
 fn straight_field(road: &Road) -> Field {
     let params = FieldParams::default();
-    Field { params, width: 2.0, obstacles: vec![], lines: road_lines(road, &params) }
+    Field { params, width: 2.0, obstacles: vec![], lines: road_lines(road, &params, true) }
 }
 
 /// A problem on a straight road at 10 Hz, coasting, with the preview point free across the road.

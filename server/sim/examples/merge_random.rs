@@ -1,0 +1,213 @@
+//! The merge benchmark of issue 23: each of the six game-theoretic policies (style x
+//! game) driving the merging car of scenarios/merge-random.toml over seeds 0..99 (or
+//! SEEDS from FIRST), as
+//! `arena eval --policy gt:<style>:<game>` drives it, tabled as success / lane end /
+//! collision / off road per policy (docs/design.md, "Merging that completes"):
+//!
+//! `cargo run --release -p arena-sim --example merge_random [-- SEEDS [FIRST] | -- --trace SEED STYLE GAME]`
+//!
+//! An episode is the env's: the seed seeds the seeds (`Env::reset(Some(seed))`), whose
+//! first draw seeds both the `[vary]` draws and the world; the learner (ec_0) becomes a
+//! `gt` leader of the policy's style and game with the default constants; the world
+//! advances in 0.1 s steps for at most `max_cycles` of them, ending when ec_0 stops
+//! driving. Success is server/src/env/episode.rs's: ended on the road (time limit or
+//! road end) in a `[goal]` lane, ahead of every `[goal] ahead_of` car.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use arena_sim::Game;
+use arena_sim::Role;
+use arena_sim::Style;
+use arena_sim::{Driver, Status, VehicleId, World};
+use arena_sim::{DriverSpec, Scenario, builtin_scenario};
+
+/// How an episode ended, in `arena eval`'s words.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum EndReason {
+    Collision,
+    OffRoad,
+    LaneEnd,
+    RoadEnd,
+    TimeLimit,
+}
+
+struct Episode {
+    end: EndReason,
+    success: bool,
+    /// When ec_0's first lane change began (s), if one did.
+    change_at: Option<f64>,
+    /// The shortest full-width duration of a lane change it decided (s), if one was
+    /// shortened (docs/design.md, "Merging that completes").
+    shortest: Option<f64>,
+    /// Whether it gave up a lane change under way.
+    aborted: bool,
+    /// Whether it came to a stop (under 0.5 m/s) in the ending lane.
+    stopped: bool,
+    /// Its largest lateral acceleration while driving (m/s^2).
+    peak_lateral: f64,
+}
+
+fn episode(scenario: &Scenario, seed: u64, style: Style, game: Game, trace: bool) -> Episode {
+    let world_seed = ChaCha8Rng::seed_from_u64(seed).next_u64();
+    let mut draws = ChaCha8Rng::seed_from_u64(world_seed);
+    let mut drawn = scenario.episode(&mut draws, &[]).expect("merge-random draws valid episodes");
+    for vehicle in drawn.vehicles.iter_mut().filter(|v| matches!(v.driver, DriverSpec::Agent(_))) {
+        vehicle.style = style;
+        vehicle.driver = DriverSpec::Gt { game, role: Role::Leader, params: Default::default() };
+    }
+    let mut world = drawn.build(world_seed);
+    world.set_decision_threads(1);
+    let ec = world.find("ec_0").expect("merge-random has ec_0");
+    let ticks = (drawn.step_dt / world.params().physics_dt).round() as u64;
+    let start_lane = world.vehicle(ec).target_lane;
+    let mut e = Episode {
+        end: EndReason::TimeLimit,
+        success: false,
+        change_at: None,
+        shortest: None,
+        aborted: false,
+        stopped: false,
+        peak_lateral: 0.0,
+    };
+    for _ in 0..drawn.max_cycles {
+        for _ in 0..ticks {
+            world.tick();
+            let v = world.vehicle(ec);
+            if v.status == Status::Driving {
+                e.peak_lateral = e.peak_lateral.max(v.state.lateral_accel(world.vehicle_params()).abs());
+            }
+            if let Driver::Gt(gt) = &v.driver {
+                if let Some(t) = gt.decision.duration {
+                    e.shortest = Some(e.shortest.map_or(t, |s| s.min(t)));
+                }
+                e.aborted |= gt.decision.aborted;
+            }
+            e.stopped |= world.current_lane(ec) == start_lane && v.state.vx < 0.5;
+        }
+        let v = world.vehicle(ec);
+        if e.change_at.is_none() && v.target_lane != start_lane {
+            e.change_at = Some(world.time());
+        }
+        if trace {
+            let decision = match &v.driver {
+                Driver::Gt(gt) => format!(
+                    "{:?} a={:+.2} T={:?} aborted={}",
+                    gt.decision.lane_change, gt.decision.accel, gt.decision.duration, gt.decision.aborted
+                ),
+                _ => String::new(),
+            };
+            let ac = world.find("ac").map(|ac| world.vehicle(ac));
+            println!(
+                "t={:5.1} s={:6.1} left={:6.1} d={:+.2} v={:5.2} target={} {decision} | ac s={:6.1} v={:5.2}",
+                world.time(),
+                v.state.s,
+                world.road().lane_end(start_lane) - v.state.s,
+                v.state.d,
+                v.state.lane_speed(),
+                v.target_lane.0,
+                ac.map_or(f64::NAN, |ac| ac.state.s),
+                ac.map_or(f64::NAN, |ac| ac.state.lane_speed()),
+            );
+        }
+        if let Some(ended) = ended(&world, ec) {
+            e.end = ended;
+            break;
+        }
+    }
+    e.success = succeeded(&world, &drawn, ec, e.end);
+    e
+}
+
+/// server/src/env/episode.rs's `ended`.
+fn ended(world: &World, id: VehicleId) -> Option<EndReason> {
+    let vehicle = world.vehicle(id);
+    match vehicle.status {
+        Status::Driving => None,
+        Status::Crashed => Some(EndReason::Collision),
+        Status::Exited => Some(EndReason::RoadEnd),
+        Status::OffRoad => {
+            let road = world.road();
+            let lane = road.nearest_lane(vehicle.state.d);
+            let within = (vehicle.state.d - road.lane_center(lane)).abs() <= road.lane_width() / 2.0;
+            Some(if within && vehicle.state.s > road.lane_end(lane) { EndReason::LaneEnd } else { EndReason::OffRoad })
+        }
+    }
+}
+
+/// server/src/env/episode.rs's `succeeded`.
+fn succeeded(world: &World, scenario: &Scenario, id: VehicleId, end: EndReason) -> bool {
+    if !matches!(end, EndReason::TimeLimit | EndReason::RoadEnd) {
+        return false;
+    }
+    let vehicle = world.vehicle(id);
+    let goal = &scenario.goal;
+    let in_lane = goal.lanes.is_empty() || goal.lanes.contains(&world.current_lane(id));
+    let ahead = goal
+        .ahead_of
+        .iter()
+        .all(|name| world.find(name).is_none_or(|other| vehicle.state.s > world.vehicle(other).state.s));
+    in_lane && ahead
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let scenario = builtin_scenario("merge-random").expect("merge-random is built in").expect("it validates");
+    if let Some(at) = args.iter().position(|a| a == "--trace") {
+        let arg = |k: usize| args.get(at + k).map(String::as_str).expect("--trace SEED STYLE GAME");
+        let seed: u64 = arg(1).parse().expect("--trace SEED STYLE GAME");
+        let style = Style::ALL.into_iter().find(|s| s.name() == arg(2)).expect("a style");
+        let game = Game::ALL.into_iter().find(|g| g.name() == arg(3)).expect("a game");
+        let e = episode(&scenario, seed, style, game, true);
+        println!(
+            "end {:?}, success {}, lane change from {:?} s, shortest duration {:?} s, aborted {}, stopped {}, \
+             peak lateral acceleration {:.2} m/s^2",
+            e.end, e.success, e.change_at, e.shortest, e.aborted, e.stopped, e.peak_lateral
+        );
+        return;
+    }
+    let seeds: u64 = args.first().map_or(100, |n| n.parse().expect("SEEDS: a count"));
+    let first: u64 = args.get(1).map_or(0, |n| n.parse().expect("FIRST: the first seed"));
+    let last = (first + seeds).saturating_sub(1);
+    println!("merge-random, seeds {first}..{last}, ec_0 driven by gt:<style>:<game>\n");
+    println!(
+        "| policy | success | lane_end | collision | off_road | other failure | shortened (shortest T, s) | \
+         aborted | stopped | peak a_y (m/s^2) | failing seeds |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for style in Style::ALL {
+        for game in Game::ALL {
+            let (mut success, mut lane_end, mut collision, mut off_road, mut other) = (0, 0, 0, 0, 0);
+            let (mut shortened, mut shortest, mut aborted, mut stopped, mut peak) = (0, f64::INFINITY, 0, 0, 0.0f64);
+            let mut failing = Vec::new();
+            for seed in first..first + seeds {
+                let e = episode(&scenario, seed, style, game, false);
+                match (e.success, e.end) {
+                    (true, _) => success += 1,
+                    (false, EndReason::LaneEnd) => lane_end += 1,
+                    (false, EndReason::Collision) => collision += 1,
+                    (false, EndReason::OffRoad) => off_road += 1,
+                    (false, _) => other += 1,
+                }
+                if !e.success {
+                    failing.push(format!("{seed}:{:?}", e.end));
+                }
+                if let Some(t) = e.shortest {
+                    shortened += 1;
+                    shortest = shortest.min(t);
+                }
+                aborted += usize::from(e.aborted);
+                stopped += usize::from(e.stopped);
+                peak = peak.max(e.peak_lateral);
+            }
+            let shortest = if shortened > 0 { format!(" ({shortest:.2})") } else { String::new() };
+            println!(
+                "| gt:{}:{} | {success} | {lane_end} | {collision} | {off_road} | {other} | {shortened}{shortest} | \
+                 {aborted} | {stopped} | {peak:.2} | {} |",
+                style.name(),
+                game.name(),
+                failing.join(" ")
+            );
+        }
+    }
+}

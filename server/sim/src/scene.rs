@@ -176,6 +176,16 @@ impl Scene {
         self.cars[id.0 as usize].decided = Some((accel, change));
     }
 
+    /// `f` of this scene with car `id` changing to `lane`, the scene as it was afterwards.
+    /// The lanes' car lists stay as they are: for `id`'s own plan only, which never reads
+    /// `id` from them.
+    pub(crate) fn with_target_lane<R>(&mut self, id: VehicleId, lane: LaneId, f: impl FnOnce(&Scene) -> R) -> R {
+        let own = std::mem::replace(&mut self.cars[id.0 as usize].target_lane, lane);
+        let result = f(self);
+        self.cars[id.0 as usize].target_lane = own;
+        result
+    }
+
     /// The car with this id.
     pub fn car(&self, id: VehicleId) -> &Car {
         &self.cars[id.0 as usize]

@@ -307,9 +307,18 @@ impl World {
     /// The AV's command in `id`'s place now (its acceleration and the preview point its
     /// MPC plans), with the memory `expert` holds of its earlier periods there, which it
     /// then updates (its `decision` among them).
+    /// In a place the AV does not drive, the lane change it makes is its own
+    /// (`GtDriver::counterfactual_target`), not the vehicle's.
     pub fn expert_command(&mut self, id: VehicleId, expert: &mut GtDriver) -> Command {
-        let step = gt::plan(self.scene(), id, expert, None);
+        self.scene();
+        let car = *self.scene.car(id);
+        let beside = |lane: &LaneId| lane.0.abs_diff(car.lane.0) <= 1;
+        let target = expert.counterfactual_target.filter(beside).unwrap_or(car.target_lane);
+        let step = self.scene.with_target_lane(id, target, |scene| gt::plan(scene, id, expert, None));
         *expert = step.driver;
+        if !matches!(self.vehicle(id).driver, Driver::Gt(_)) {
+            expert.counterfactual_target = Some(step.change_to.unwrap_or(target));
+        }
         step.command
     }
 

@@ -175,6 +175,11 @@ pub struct GtDriver {
     /// cross the lane line (`merge`).
     #[serde(default)]
     pub crossing_at: Option<f64>,
+    /// The lane it is changing to when it plans in a place it does not drive
+    /// (`World::expert_command`, a learner's vehicle), whose own target lane is the
+    /// learner's; `None` where it drives.
+    #[serde(default)]
+    pub counterfactual_target: Option<LaneId>,
     /// What happened in the last plan.
     pub diagnostics: Diagnostics,
 }
@@ -191,6 +196,7 @@ impl GtDriver {
             plan: Vec::new(),
             pace: None,
             crossing_at: None,
+            counterfactual_target: None,
             diagnostics: Diagnostics::default(),
         }
     }

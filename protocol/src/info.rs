@@ -145,6 +145,13 @@ pub const COST_EFFICIENCY: &str = "cost_efficiency";
 pub const ACTION_APPLIED: &str = "action_applied";
 /// `EndReason` code: 0 while running.
 pub const END_REASON: &str = "end_reason";
+/// The vehicle the agent's vehicle collided with (its index in the world: the scenario's
+/// named vehicles sorted by name, then the traffic cars in the order drawn), -1 while it
+/// has not.
+pub const COLLISION_WITH: &str = "collision_with";
+/// 1 if the agent's vehicle was at fault for that collision (it struck a car in its lane,
+/// or changed lanes into occupied space; docs/design.md, "Collision attribution"), else 0.
+pub const AT_FAULT: &str = "at_fault";
 /// Whether this is the agent's last step: then the `episode_*` figures are its episode's.
 pub const EPISODE_DONE: &str = "episode_done";
 /// The scenario's goal was reached (docs/evaluation.md).
@@ -170,7 +177,7 @@ pub const EPISODE_RMS_EFFICIENCY: &str = "episode_rms_efficiency";
 pub const EPISODE_T_C: &str = "episode_t_c";
 
 /// Every agent's info, in this order, on reset and on every step.
-pub const SCHEMA: [(&str, InfoKind); 22] = [
+pub const SCHEMA: [(&str, InfoKind); 24] = [
     (SPEED, InfoKind::F64),
     (LANE, InfoKind::I64),
     (S, InfoKind::F64),
@@ -182,6 +189,8 @@ pub const SCHEMA: [(&str, InfoKind); 22] = [
     (COST_EFFICIENCY, InfoKind::F64),
     (ACTION_APPLIED, InfoKind::Bool),
     (END_REASON, InfoKind::I64),
+    (COLLISION_WITH, InfoKind::I64),
+    (AT_FAULT, InfoKind::I64),
     (EPISODE_DONE, InfoKind::Bool),
     (EPISODE_SUCCESS, InfoKind::Bool),
     (EPISODE_RETURN, InfoKind::F64),

@@ -58,4 +58,4 @@ pub use spaces::{DType, Space};
 /// 4: `ServerInfo::yours`, and requests of a named user travel on `keys::user_rpc`;
 /// 5: one row per agent in step and reset replies, `ResetOptions`, infos of one fixed
 /// schema with no strings, `info::SCHEMA`).
-pub const PROTOCOL_VERSION: u16 = 5;
+pub const PROTOCOL_VERSION: u16 = 6;

@@ -11,9 +11,10 @@ use arena_protocol::{EndReason, Info};
 use serde::Serialize;
 
 /// The figures of an episode, in table order: (key, column heading, what it is).
-pub const FIGURES: [(&str, &str, &str); 11] = [
+pub const FIGURES: [(&str, &str, &str); 12] = [
     ("success", "success", "reached the scenario's goal (merged, overtook, or drove on) without a crash, as a rate"),
     ("collision", "collision", "ended in a collision, as a rate"),
+    ("at_fault", "at fault", "ended in a collision it was at fault for (`at_fault`), as a rate"),
     ("off_road", "off-road", "left the road or drove past its lane's end, as a rate"),
     ("t_c", "t_c (s)", "when the first lane change began (episodes with one)"),
     ("mean_speed", "speed (m/s)", "mean speed along the lane"),
@@ -26,7 +27,7 @@ pub const FIGURES: [(&str, &str, &str); 11] = [
 ];
 
 /// Figures that are rates of yes-or-no outcomes (Wilson intervals).
-const RATES: usize = 3;
+const RATES: usize = 4;
 
 /// One agent's episode.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -61,6 +62,7 @@ impl Episode {
         let figures = vec![
             number(key::EPISODE_SUCCESS)?,
             f64::from(u8::from(end == EndReason::Collision)),
+            f64::from(u8::from(end == EndReason::Collision && number(key::AT_FAULT)? == 1.0)),
             f64::from(u8::from(matches!(end, EndReason::OffRoad | EndReason::LaneEnd))),
             // +inf when no lane change began.
             finite(number(key::EPISODE_T_C)?),
@@ -291,7 +293,7 @@ mod tests {
             seed: 0,
             agent: "a".into(),
             end_reason: "time_limit".into(),
-            figures: vec![1.0, 0.0, 0.0, t_c, 20.0, 5.0, f64::NAN, 1.0, 1.0, 1.0, ret],
+            figures: vec![1.0, 0.0, 0.0, 0.0, t_c, 20.0, 5.0, f64::NAN, 1.0, 1.0, 1.0, ret],
         };
         let summary = &summarise(&[episode(2.0, 10.0), episode(f64::NAN, 20.0), episode(4.0, 30.0)])[0];
         let get = |key: &str| summary.figures.iter().find(|(k, _)| k == key).unwrap().1;

@@ -37,4 +37,7 @@ pub use scenario::{
 };
 pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 pub use traffic::{IdmParams, speed_control};
-pub use world::{AgentCommand, Collision, Driver, LEARNER_SPEED_FACTOR, Vehicle, World, WorldParams};
+pub use world::{
+    AgentCommand, AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver, LEARNER_SPEED_FACTOR, LaneEntry, Vehicle,
+    World, WorldParams,
+};

@@ -15,7 +15,11 @@ use crate::dynamics::{self, Command, DriverParams, LateralPath, Style, VehiclePa
 use crate::gt::{self, GtDriver, GtParams, GtStep};
 use crate::road::{LaneChange, LaneId, Road};
 use crate::scene::{Car, DriverKind, Role, Scene};
+
+mod collision;
 use crate::traffic::{self, IdmDecision, IdmParams};
+use collision::Approach;
+pub use collision::{AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, LaneEntry};
 
 pub use crate::scene::{Status, VehicleId};
 
@@ -87,6 +91,8 @@ pub struct Vehicle {
     pub status: Status,
     /// Simulated time of the last MOBIL consultation (s).
     pub last_lane_decision: f64,
+    /// The lane it was in at the last control instant, and since when (`collision`).
+    pub lane_entry: LaneEntry,
 }
 
 impl Vehicle {
@@ -105,6 +111,7 @@ impl Vehicle {
             command: Command { accel: 0.0, preview: d },
             status: Status::Driving,
             last_lane_decision: f64::NEG_INFINITY,
+            lane_entry: LaneEntry { lane, at: None },
         }
     }
 
@@ -120,15 +127,6 @@ impl Vehicle {
             Driver::Gt(gt) => DriverKind::Gt(gt.role),
         }
     }
-}
-
-/// A collision found in the last tick.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Collision {
-    /// The vehicle behind (smaller s).
-    pub rear: VehicleId,
-    /// The vehicle ahead.
-    pub front: VehicleId,
 }
 
 /// How far above its lane's speed limit a learner's continuous actions may take it:
@@ -244,6 +242,14 @@ impl World {
         &self.collisions
     }
 
+    /// Vehicle `id`'s first collision, if it had one.
+    pub fn collision_of(&self, id: VehicleId) -> Option<&Collision> {
+        if self.vehicle(id).status != Status::Crashed {
+            return None;
+        }
+        self.collisions.iter().find(|c| c.other(id).is_some())
+    }
+
     /// Every vehicle, by id.
     pub fn vehicles(&self) -> &[Vehicle] {
         &self.vehicles
@@ -343,6 +349,7 @@ impl World {
         self.sort_along_road();
         if self.ticks.is_multiple_of(self.params.substeps_per_control()) {
             self.scene();
+            self.note_lane_entries();
             self.decide();
         }
         self.integrate();
@@ -594,6 +601,16 @@ impl World {
         }
     }
 
+    /// Notes which vehicles entered another lane since the last control instant.
+    fn note_lane_entries(&mut self) {
+        let time = self.time;
+        for (vehicle, car) in self.vehicles.iter_mut().zip(self.scene.cars()) {
+            if car.lane != vehicle.lane_entry.lane {
+                vehicle.lane_entry = LaneEntry { lane: car.lane, at: Some(time) };
+            }
+        }
+    }
+
     /// Oriented-box overlap between vehicles close along the road (a sweep over the
     /// sorted order: only pairs nearer than one body diagonal in s are tested).
     fn detect_collisions(&mut self) {
@@ -617,7 +634,8 @@ impl World {
                     && (b.state.d - a.state.d).abs() <= lateral_reach
                     && self.boxes_overlap(a, b)
                 {
-                    found.push(Collision { rear: VehicleId(i), front: VehicleId(j) });
+                    let at_fault = collision::at_fault(&self.approach(a), &self.approach(b), self.time);
+                    found.push(Collision { rear: VehicleId(i), front: VehicleId(j), at_fault });
                 }
             }
         }
@@ -626,6 +644,16 @@ impl World {
             self.vehicles[collision.front.0 as usize].status = Status::Crashed;
         }
         self.collisions.extend(found);
+    }
+
+    /// Vehicle `v` as collision attribution reads it now.
+    fn approach(&self, v: &Vehicle) -> Approach {
+        let (state, road) = (&v.state, self.road());
+        // As the scene reads the lane (`Scene::refresh`), so that entries compare.
+        let lane = road.lane_at(state.s, state.d).unwrap_or(v.target_lane);
+        let entered = if lane == v.lane_entry.lane { v.lane_entry.at } else { Some(self.time) };
+        let lateral_speed = state.vx * state.heading.sin() + state.vy * state.heading.cos();
+        Approach { lane, entered, target_lane: v.target_lane, d: state.d, lateral_speed }
     }
 
     fn boxes_overlap(&self, a: &Vehicle, b: &Vehicle) -> bool {

@@ -38,6 +38,9 @@ pub fn info(world: &World, id: VehicleId, outcome: &Outcome) -> Info {
     let vehicle = world.vehicle(id);
     let cost = outcome.cost.copied().unwrap_or_default();
     let f = &outcome.figures;
+    let collision = world.collision_of(id);
+    let collision_with = collision.and_then(|c| c.other(id)).map_or(-1, |other| i64::from(other.0));
+    let at_fault = collision.is_some_and(|c| c.is_at_fault(id));
     let values = [
         (key::SPEED, InfoValue::F64(vehicle.state.vx)),
         (key::LANE, InfoValue::I64(i64::from(world.road().nearest_lane(vehicle.state.d).0))),
@@ -50,6 +53,8 @@ pub fn info(world: &World, id: VehicleId, outcome: &Outcome) -> Info {
         (key::COST_EFFICIENCY, InfoValue::F64(cost.components.efficiency)),
         (key::ACTION_APPLIED, InfoValue::Bool(outcome.applied)),
         (key::END_REASON, InfoValue::I64(outcome.end.code())),
+        (key::COLLISION_WITH, InfoValue::I64(collision_with)),
+        (key::AT_FAULT, InfoValue::I64(i64::from(at_fault))),
         (key::EPISODE_DONE, InfoValue::Bool(f.done)),
         (key::EPISODE_SUCCESS, InfoValue::Bool(f.success)),
         (key::EPISODE_RETURN, InfoValue::F64(f.total_reward)),

@@ -666,3 +666,92 @@ fn an_expert_that_is_not_the_driving_av_is_refused() {
     let Err(refused) = Env::from_text(file, text, &options, 1) else { panic!("two experts") };
     assert!(refused.message.contains("expert nash"), "{}", refused.message);
 }
+
+/// Two continuous learners on a straight two-lane road, `a_rear` behind `b_front` (world
+/// indices 0 and 1: named vehicles are sorted by name), each holding its speed.
+fn two_cars(front_lane: u32, front_s: f64) -> Env {
+    let text = format!(
+        r#"
+name = "two-cars"
+[sim]
+step_dt = 0.1
+max_cycles = 100
+[road]
+lanes = 2
+speed_limits = [30.0, 30.0]
+sections = [{{ length = 1000.0 }}]
+[[vehicle]]
+name = "a_rear"
+lane = 0
+s = 20.0
+speed = 20.0
+driver = {{ kind = "agent", action = "continuous" }}
+[[vehicle]]
+name = "b_front"
+lane = {front_lane}
+s = {front_s}
+speed = 12.0
+driver = {{ kind = "agent", action = "continuous" }}
+"#
+    );
+    Env::from_text("two-cars.toml", &text, &CreateOptions::default(), 1).unwrap()
+}
+
+/// Steps `a_rear` straight on and `b_front` towards lane `front_to` (continuous actions
+/// aim relative to the current lane) until both ended; each one's (end reason,
+/// collision_with, at_fault) from its last info.
+fn crash(env: &mut Env, front_to: i64) -> Vec<(String, EndReason, i64, i64)> {
+    let mut last = Vec::new();
+    let reset = env.reset(Some(0), NO_OPTIONS).unwrap();
+    let front = reset.iter().find(|r| r.agent == "b_front").unwrap();
+    let mut front_lane = front.info.number("lane").unwrap() as i64;
+    for _ in 0..100 {
+        let offset = (front_lane - front_to) as f32;
+        let actions = [
+            ("a_rear".to_string(), Action::Continuous([0.0, 0.0])),
+            ("b_front".to_string(), Action::Continuous([0.0, offset])),
+        ];
+        for step in env.step(&actions).unwrap() {
+            let integer = |key: &str| step.info.number(key).unwrap() as i64;
+            if step.agent == "b_front" {
+                front_lane = integer("lane");
+            }
+            if step.terminated || step.truncated {
+                let end = step.info.end_reason().unwrap();
+                last.push((step.agent.clone(), end, integer("collision_with"), integer("at_fault")));
+            }
+        }
+        if env.live_agents().is_empty() {
+            break;
+        }
+    }
+    last.sort_by(|a, b| a.0.cmp(&b.0));
+    last
+}
+
+#[test]
+fn a_rear_end_collision_names_the_other_car_and_faults_the_car_behind() {
+    let mut env = two_cars(0, 60.0);
+    let ended = crash(&mut env, 0);
+    let c = EndReason::Collision;
+    assert_eq!(ended, vec![("a_rear".into(), c, 1, 1), ("b_front".into(), c, 0, 0)]);
+}
+
+#[test]
+fn a_cut_in_collision_faults_the_car_that_changed_lanes() {
+    // b_front steers one lane to the left (into a_rear's lane) 25 m ahead at 8 m/s less.
+    let mut env = two_cars(1, 45.0);
+    let ended = crash(&mut env, 0);
+    let c = EndReason::Collision;
+    assert_eq!(ended, vec![("a_rear".into(), c, 1, 0), ("b_front".into(), c, 0, 1)]);
+}
+
+#[test]
+fn before_any_collision_nobody_collided_or_is_at_fault() {
+    let mut env = two_cars(1, 200.0);
+    let reset = env.reset(Some(0), NO_OPTIONS).unwrap();
+    let step = env.step(&[]).unwrap();
+    for info in reset.iter().map(|r| &r.info).chain(step.iter().map(|s| &s.info)) {
+        assert_eq!((info.number("collision_with"), info.number("at_fault")), (Some(-1.0), Some(0.0)), "{info:?}");
+    }
+}

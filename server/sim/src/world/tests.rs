@@ -63,9 +63,24 @@ fn a_car_that_does_not_brake_hits_a_stopped_one() {
     let beside = world.add(Vehicle::new("beside", &road, LaneId(1), 20.0, 20.0, Style::Normal, Driver::Idm));
     world.vehicle_mut(stopped).target_speed = 0.0;
     world.advance(6.0);
-    assert_eq!(world.collisions(), vec![Collision { rear: blind, front: stopped }]);
+    assert_eq!(world.collisions(), vec![Collision { rear: blind, front: stopped, at_fault: AtFault::Rear }]);
     assert_eq!(world.vehicle(blind).status, Status::Crashed);
     assert_eq!(world.vehicle(beside).status, Status::Driving);
+}
+
+#[test]
+fn a_car_that_cuts_in_at_a_short_gap_is_at_fault() {
+    let road = Road::straight(1000.0, 2, 4.0, 30.0);
+    let mut world = World::new(road.clone(), WorldParams::default(), 0);
+    let direct = Driver::Agent(AgentCommand::Direct(Command { accel: 0.0, preview: 0.0 }));
+    let behind = world.add(Vehicle::new("behind", &road, LaneId(0), 20.0, 20.0, Style::Normal, direct));
+    let track = Driver::Agent(AgentCommand::Track);
+    let cutter = world.add(Vehicle::new("cutter", &road, LaneId(1), 45.0, 12.0, Style::Normal, track));
+    world.change_lane(cutter, LaneId(0));
+    world.advance(6.0);
+    let collisions = world.collisions();
+    assert_eq!(collisions, vec![Collision { rear: behind, front: cutter, at_fault: AtFault::Front }]);
+    assert!(collisions[0].is_at_fault(cutter) && !collisions[0].is_at_fault(behind));
 }
 
 #[test]

@@ -175,9 +175,15 @@ pub const EPISODE_RMS_EFFICIENCY: &str = "episode_rms_efficiency";
 /// When the first lane change that crossed half a lane began (s, Tables IV, VI); +inf if
 /// none did.
 pub const EPISODE_T_C: &str = "episode_t_c";
+/// The 95th percentile of the episode's commanded jerk (m/s^3): the change of the
+/// acceleration commanded in one control period from the last, over the period, in
+/// magnitude (docs/evaluation.md); 0 with fewer than two periods.
+pub const EPISODE_P95_JERK: &str = "episode_p95_jerk";
+/// The largest commanded jerk of the episode (m/s^3), likewise.
+pub const EPISODE_MAX_JERK: &str = "episode_max_jerk";
 
 /// Every agent's info, in this order, on reset and on every step.
-pub const SCHEMA: [(&str, InfoKind); 24] = [
+pub const SCHEMA: [(&str, InfoKind); 26] = [
     (SPEED, InfoKind::F64),
     (LANE, InfoKind::I64),
     (S, InfoKind::F64),
@@ -202,6 +208,8 @@ pub const SCHEMA: [(&str, InfoKind); 24] = [
     (EPISODE_RMS_COMFORT, InfoKind::F64),
     (EPISODE_RMS_EFFICIENCY, InfoKind::F64),
     (EPISODE_T_C, InfoKind::F64),
+    (EPISODE_P95_JERK, InfoKind::F64),
+    (EPISODE_MAX_JERK, InfoKind::F64),
 ];
 
 /// What the built-in AV would do in the agent's place (option `expert`): an action of

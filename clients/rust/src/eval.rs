@@ -11,7 +11,7 @@ use arena_protocol::{EndReason, Info};
 use serde::Serialize;
 
 /// The figures of an episode, in table order: (key, column heading, what it is).
-pub const FIGURES: [(&str, &str, &str); 12] = [
+pub const FIGURES: [(&str, &str, &str); 14] = [
     ("success", "success", "reached the scenario's goal (merged, overtook, or drove on) without a crash, as a rate"),
     ("collision", "collision", "ended in a collision, as a rate"),
     ("at_fault", "at fault", "ended in a collision it was at fault for (`at_fault`), as a rate"),
@@ -24,6 +24,12 @@ pub const FIGURES: [(&str, &str, &str); 12] = [
     ("rms_comfort", "RMS comfort", "RMS of J_rc"),
     ("rms_efficiency", "RMS efficiency", "RMS of J_pe"),
     ("return", "return", "sum of the rewards"),
+    (
+        "p95_jerk",
+        "p95 jerk (m/s³)",
+        "95th percentile of the commanded jerk, the change of acceleration between control periods",
+    ),
+    ("max_jerk", "max jerk (m/s³)", "largest commanded jerk"),
 ];
 
 /// Figures that are rates of yes-or-no outcomes (Wilson intervals).
@@ -73,6 +79,8 @@ impl Episode {
             number(key::EPISODE_RMS_COMFORT)?,
             number(key::EPISODE_RMS_EFFICIENCY)?,
             number(key::EPISODE_RETURN)?,
+            number(key::EPISODE_P95_JERK)?,
+            number(key::EPISODE_MAX_JERK)?,
         ];
         Ok(Episode {
             policy: policy.to_string(),
@@ -293,7 +301,7 @@ mod tests {
             seed: 0,
             agent: "a".into(),
             end_reason: "time_limit".into(),
-            figures: vec![1.0, 0.0, 0.0, 0.0, t_c, 20.0, 5.0, f64::NAN, 1.0, 1.0, 1.0, ret],
+            figures: vec![1.0, 0.0, 0.0, 0.0, t_c, 20.0, 5.0, f64::NAN, 1.0, 1.0, 1.0, ret, 2.0, 3.0],
         };
         let summary = &summarise(&[episode(2.0, 10.0), episode(f64::NAN, 20.0), episode(4.0, 30.0)])[0];
         let get = |key: &str| summary.figures.iter().find(|(k, _)| k == key).unwrap().1;

@@ -52,6 +52,10 @@ pub struct Figures {
     pub rms: CostComponents,
     /// When the first lane change crossing half a lane began (s); +inf if none did.
     pub t_c: f64,
+    /// The 95th percentile of the commanded jerk (m/s^3).
+    pub p95_jerk: f64,
+    /// The largest commanded jerk (m/s^3).
+    pub max_jerk: f64,
 }
 
 /// The running figures of one agent's episode.
@@ -72,11 +76,15 @@ pub struct EpisodeStats {
     /// Set once the vehicle has crossed half a lane from where it started.
     t_c: Option<f64>,
     crossed: bool,
+    /// The acceleration commanded in the last control period, and every commanded jerk.
+    last_accel: Option<f64>,
+    jerks: Vec<f64>,
 }
 
 impl EpisodeStats {
-    /// The figures of an episode starting in `world` now.
-    pub fn start(world: &World, id: VehicleId) -> EpisodeStats {
+    /// The figures of an episode starting in `world` now, of at most `periods` control
+    /// periods (room for their jerks is made now, not in a later step).
+    pub fn start(world: &World, id: VehicleId, periods: usize) -> EpisodeStats {
         let vehicle = world.vehicle(id);
         EpisodeStats {
             steps: 0,
@@ -91,6 +99,8 @@ impl EpisodeStats {
             changing_since: None,
             t_c: None,
             crossed: false,
+            last_accel: None,
+            jerks: Vec::with_capacity(periods),
         }
     }
 
@@ -121,8 +131,19 @@ impl EpisodeStats {
         }
     }
 
+    /// Adds the accelerations commanded in consecutive control periods of `control_dt`:
+    /// each change from the last over the period is a commanded jerk.
+    pub fn record_accels(&mut self, accels: &[f64], control_dt: f64) {
+        for &accel in accels {
+            if let Some(last) = self.last_accel {
+                self.jerks.push(((accel - last) / control_dt).abs());
+            }
+            self.last_accel = Some(accel);
+        }
+    }
+
     /// The figures of the episode, which ended for `end`.
-    pub fn finish(&self, world: &World, id: VehicleId, goal: &Goal, end: EndReason) -> Figures {
+    pub fn finish(&mut self, world: &World, id: VehicleId, goal: &Goal, end: EndReason) -> Figures {
         let n = f64::from(self.cost_samples.max(1));
         let rms = |square: f64| (square / n).sqrt();
         Figures {
@@ -139,8 +160,18 @@ impl EpisodeStats {
                 efficiency: rms(self.cost_squares.efficiency),
             },
             t_c: self.t_c.unwrap_or(f64::INFINITY),
+            p95_jerk: percentile(&mut self.jerks, 0.95),
+            max_jerk: self.jerks.iter().copied().fold(0.0, f64::max),
         }
     }
+}
+
+/// The `q` quantile of `values` by nearest rank (the smallest value with at least a share
+/// `q` of them at or below it); 0 for none. Sorts `values` in place.
+fn percentile(values: &mut [f64], q: f64) -> f64 {
+    values.sort_unstable_by(f64::total_cmp);
+    let rank = (q * values.len() as f64).ceil() as usize;
+    values.get(rank.saturating_sub(1)).copied().unwrap_or(0.0)
 }
 
 /// Whether the episode reached the scenario's goal: it ended on the road (time limit or
@@ -179,4 +210,17 @@ fn closest_approach(world: &mut World, id: VehicleId) -> (f64, f64) {
         let time = if g > 0.0 && closing > 0.0 { g / closing } else { f64::INFINITY };
         (gap.min(g), ttc.min(time))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::percentile;
+
+    #[test]
+    fn the_95th_percentile_is_the_nearest_rank() {
+        let mut values: Vec<f64> = (1..=20).rev().map(f64::from).collect();
+        assert_eq!(percentile(&mut values[10..], 0.95), 10.0);
+        assert_eq!(percentile(&mut values, 0.95), 19.0);
+        assert_eq!(percentile(&mut [], 0.95), 0.0);
+    }
 }

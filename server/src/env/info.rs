@@ -66,6 +66,8 @@ pub fn info(world: &World, id: VehicleId, outcome: &Outcome) -> Info {
         (key::EPISODE_RMS_COMFORT, InfoValue::F64(f.rms.comfort)),
         (key::EPISODE_RMS_EFFICIENCY, InfoValue::F64(f.rms.efficiency)),
         (key::EPISODE_T_C, InfoValue::F64(f.t_c)),
+        (key::EPISODE_P95_JERK, InfoValue::F64(f.p95_jerk)),
+        (key::EPISODE_MAX_JERK, InfoValue::F64(f.max_jerk)),
     ];
     let mut info = Info { values: Vec::with_capacity(ENTRIES) };
     for (name, value) in values {

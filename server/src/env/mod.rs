@@ -86,6 +86,8 @@ struct StepScratch {
     driving_before: Vec<bool>,
     vehicles: Vec<VehicleId>,
     costs: Vec<simulate::StepCost>,
+    /// Per live agent, the acceleration commanded in each control period of the step.
+    accels: Vec<Vec<f64>>,
     /// Simulated time when the step began.
     started: f64,
 }
@@ -245,12 +247,13 @@ impl Env {
         self.seeds = seeds;
         self.episode = episode;
         self.cycles = 0;
+        let periods = self.control_periods(&world);
         for agent in &mut self.agents {
             agent.live = true;
             agent.vehicle = world.find(&agent.name).unwrap_or(agent.vehicle);
             agent.expert =
                 self.expert.map(|game| Box::new(GtDriver::new(game, Role::Leader, world.gt_params(agent.vehicle))));
-            agent.stats = Some(episode::EpisodeStats::start(&world, agent.vehicle));
+            agent.stats = Some(episode::EpisodeStats::start(&world, agent.vehicle, periods));
             agent.aim = world.vehicle(agent.vehicle).target_speed;
             agent.ladder = agent.aim;
         }
@@ -343,12 +346,18 @@ impl Env {
         vehicles.extend(live_before.iter().map(|&i| self.agents[i].vehicle));
     }
 
+    /// The most control periods an episode can have: `max_cycles` steps of `step_dt`.
+    fn control_periods(&self, world: &World) -> usize {
+        let per_step = (self.episode.step_dt / world.params().control_dt).ceil() as usize;
+        self.max_cycles as usize * per_step
+    }
+
     /// Advances the world by one env step, sampling the live agents' costs.
     fn simulate(&mut self) {
         let Some(world) = self.world.as_mut() else { return };
-        let StepScratch { vehicles, costs, started, .. } = &mut self.scratch;
+        let StepScratch { vehicles, costs, accels, started, .. } = &mut self.scratch;
         *started = world.time();
-        simulate::advance(world, vehicles, self.episode.step_dt, costs);
+        simulate::advance(world, vehicles, self.episode.step_dt, costs, accels);
         self.cycles += 1;
     }
 
@@ -357,13 +366,15 @@ impl Env {
         let i = self.scratch.live_before[k];
         let cost = self.scratch.costs[k];
         let truncated = self.cycles >= self.max_cycles;
+        let periods = self.control_periods(world);
         let agent = &mut self.agents[i];
         let vehicle = world.vehicle(agent.vehicle);
         let crashed_now = self.scratch.driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
         let ended = episode::ended(world, agent.vehicle);
         let reward = reward::reward(&self.episode.reward, self.max_cycles, &cost, agent.aim, crashed_now);
-        let stats = agent.stats.get_or_insert_with(|| episode::EpisodeStats::start(world, agent.vehicle));
+        let stats = agent.stats.get_or_insert_with(|| episode::EpisodeStats::start(world, agent.vehicle, periods));
         stats.record(world, agent.vehicle, self.scratch.started, reward, &cost);
+        stats.record_accels(&self.scratch.accels[k], world.params().control_dt);
         let end = ended.unwrap_or(if truncated { EndReason::TimeLimit } else { EndReason::Running });
         let figures = match end {
             EndReason::Running => episode::Figures::default(),

@@ -1,6 +1,7 @@
 //! The simulate phase of a step: the world advanced by one env step, tick by tick, with
 //! each agent's cost (eq. 9-14) sampled at the end of every control period it drives, so
-//! the reward and the infos read the step's mean cost without another pass.
+//! the reward and the infos read the step's mean cost without another pass, and the
+//! acceleration it was commanded in each period, for the episode's jerk.
 
 use arena_sim::CostComponents;
 use arena_sim::{Status, VehicleId, World};
@@ -22,16 +23,33 @@ pub struct StepCost {
 }
 
 /// Advances the world by `step_dt` and writes into `costs` each vehicle's mean cost over
-/// it (a buffer the caller keeps: steps allocate nothing for it).
-pub fn advance(world: &mut World, vehicles: &[VehicleId], step_dt: f64, costs: &mut Vec<StepCost>) {
+/// it, and into `accels` the acceleration each was commanded in every control period
+/// that ended while it drove (buffers the caller keeps: steps allocate nothing for them).
+pub fn advance(
+    world: &mut World,
+    vehicles: &[VehicleId],
+    step_dt: f64,
+    costs: &mut Vec<StepCost>,
+    accels: &mut Vec<Vec<f64>>,
+) {
     let per_control = world.params().substeps_per_control();
     let ticks = (step_dt / world.params().physics_dt).round() as u64;
     let sums = costs;
     sums.clear();
     sums.resize(vehicles.len(), StepCost::default());
+    accels.resize_with(vehicles.len(), Vec::new);
+    accels.iter_mut().for_each(Vec::clear);
     let mut samples = 0u32;
     for tick in 0..ticks {
         world.tick();
+        if (tick + 1).is_multiple_of(per_control) {
+            for (commanded, &id) in accels.iter_mut().zip(vehicles) {
+                let vehicle = world.vehicle(id);
+                if vehicle.status == Status::Driving {
+                    commanded.push(vehicle.command.accel);
+                }
+            }
+        }
         if (tick + 1).is_multiple_of(per_control) || tick + 1 == ticks {
             samples += 1;
             for (sum, &id) in sums.iter_mut().zip(vehicles) {

@@ -755,3 +755,20 @@ fn before_any_collision_nobody_collided_or_is_at_fault() {
         assert_eq!((info.number("collision_with"), info.number("at_fault")), (Some(-1.0), Some(0.0)), "{info:?}");
     }
 }
+
+#[test]
+fn commanded_jerk_is_the_change_of_acceleration_between_control_periods() {
+    // a_rear alone in its lane commands +0.5 and 0 in turn (x 6 m/s^2, the continuous
+    // scale) every 0.1 s step: each change is 3 m/s^2 over 0.1 s, 30 m/s^3.
+    let mut env = two_cars(1, 200.0);
+    env.reset(Some(0), NO_OPTIONS).unwrap();
+    let mut last = None;
+    for k in 0..100 {
+        let accel = if k % 2 == 0 { 0.5 } else { 0.0 };
+        let steps = env.step(&[("a_rear".to_string(), Action::Continuous([accel, 0.0]))]).unwrap();
+        last = steps.into_iter().find(|s| s.agent == "a_rear").filter(|s| s.terminated || s.truncated).or(last);
+    }
+    let info = &last.expect("a_rear's episode ended").info;
+    let near = |key: &str| (info.number(key).unwrap() - 30.0).abs() < 1e-9;
+    assert!(near("episode_max_jerk") && near("episode_p95_jerk"), "{info:?}");
+}

@@ -1,0 +1,40 @@
+//! Whether a car holds its lane at highway speed (issue 23's weave, docs/baselines.md,
+//! "The driver model at speed"): one car per style and speed alone on a straight road,
+//! started 5 cm off its lane's centre, driven for 120 s in a `World` at the 10 ms step,
+//! once by IDM (traffic) and once as a learner holding its lane (a continuous action of
+//! zero offset). Prints the largest offset from the centre over the last 20 s.
+//! `cargo run --release -p arena-sim --example lane_keeping`
+
+use arena_sim::{AgentCommand, Command, Driver, LaneId, Road, Style, Vehicle, World, WorldParams};
+
+const SPEEDS: [f64; 5] = [27.0, 30.0, 33.0, 36.0, 40.0];
+const SECONDS: f64 = 120.0;
+const TAIL: f64 = 20.0;
+
+/// The largest |offset| (m) over the last `TAIL` s of a lone car at `speed`.
+fn sway(style: Style, speed: f64, driver: Driver) -> f64 {
+    let road = Road::straight(SECONDS * 45.0 + 100.0, 1, 4.0, 45.0);
+    let mut world = World::new(road.clone(), WorldParams::default(), 0);
+    let mut car = Vehicle::new("car", &road, LaneId(0), 10.0, speed, style, driver);
+    car.state.d = 0.05;
+    let id = world.add(car);
+    world.advance(SECONDS - TAIL);
+    let mut largest = 0.0f64;
+    for _ in 0..(TAIL / world.params().physics_dt).round() as usize {
+        world.tick();
+        largest = largest.max(world.vehicle(id).state.d.abs());
+    }
+    largest
+}
+
+fn main() {
+    println!("| driver | style | {} |", SPEEDS.map(|v| format!("{v:.0} m/s")).join(" | "));
+    println!("|---|---|{}", "---:|".repeat(SPEEDS.len()));
+    let learner = Driver::Agent(AgentCommand::Direct(Command { accel: 0.0, preview: 0.0 }));
+    for (name, driver) in [("IDM", Driver::Idm), ("learner", learner)] {
+        for style in Style::ALL {
+            let cells = SPEEDS.map(|v| format!("{:.4} m", sway(style, v, driver.clone())));
+            println!("| {name} | {} | {} |", style.name(), cells.join(" | "));
+        }
+    }
+}

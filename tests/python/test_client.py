@@ -487,6 +487,20 @@ def test_every_env_constructor_takes_all_the_connection_keywords_and_shows_them(
     env.close()
 
 
+def test_a_learner_that_runs_into_the_slow_car_is_told_whom_it_hit_and_that_it_was_at_fault():
+    # overtake: idle (keep lane, keep speed) drives ec_0 into the slow car lc. Named
+    # vehicles are indexed by name: ac1 0, ac2 1, ec_0 2, lc 3 (docs/protocol.md).
+    env = highway_arena.parallel_env("overtake")
+    _, infos = env.reset(seed=0)
+    assert (infos["ec_0"]["collision_with"], infos["ec_0"]["at_fault"]) == (-1, 0)
+    while env.agents:
+        _, _, _, _, infos = env.step({"ec_0": 1})
+    info = infos["ec_0"]
+    assert highway_arena.END_REASONS[info["end_reason"]] == "collision"
+    assert (info["collision_with"], info["at_fault"]) == (3, 1)
+    env.close()
+
+
 @pytest.mark.parametrize("scenario", SCENARIOS)
 def test_every_agents_infos_keep_one_schema_of_numbers_from_reset_to_the_last_step(scenario):
     # What TorchRL and Tianshou need (scripts/test-ecosystem runs them): the keys, types

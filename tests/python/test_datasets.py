@@ -105,7 +105,8 @@ def test_the_recorded_expert_is_the_driver_evaluate_ranks(merge_random):
     # scores, seed by seed (return and how it ended), failures included.
     name = "gt:normal:stackelberg"
     ranked = highway_arena.evaluate([name], "merge-random", episodes=30, seed=0, quiet=True)
-    returns = {e["seed"]: e["figures"][-1] for e in ranked.episodes}
+    k = [key for key, *_ in ranked.figures].index("return")
+    returns = {e["seed"]: e["figures"][k] for e in ranked.episodes}
     ends = {e["seed"]: e["end_reason"] for e in ranked.episodes}
     seeds = [int(m["seed"]) for m in merge_random.storage.get_episode_metadata(range(30))]
     for seed, episode in zip(seeds, merge_random.iterate_episodes()):

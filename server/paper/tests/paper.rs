@@ -185,6 +185,26 @@ fn the_merge_timing_is_inactive_in_every_paper_run() {
     }
 }
 
+#[test]
+fn the_safety_layer_is_inactive_in_every_paper_run() {
+    // Issue 24 (docs/design.md, "Safety layer"): the override of the games' acceleration
+    // (RSS's safe distance to every car ahead in the AV's lanes, emergency braking). The
+    // paper's runs keep their distances, so it must never act there, for EC or the
+    // adjacent cars: every record and trace is the same bits with it switched off.
+    let mut off = PaperOptions::default();
+    off.params.safety.enabled = false;
+    for scenario in PaperScenario::ALL {
+        for style in Style::ALL {
+            for game in Game::ALL {
+                let (record, trace) = paper::run(scenario, style, game, &off).unwrap();
+                let (expected, expected_trace) = run(scenario, style, game);
+                assert_eq!(&record, expected, "{scenario:?} {style:?} {game:?}");
+                assert_eq!(&trace, expected_trace, "{scenario:?} {style:?} {game:?}");
+            }
+        }
+    }
+}
+
 /// `text` with its `[[vehicle]]` blocks in the order `order` gives (indices into the
 /// file's order).
 fn permuted(text: &str, order: impl Fn(usize) -> Vec<usize>) -> String {

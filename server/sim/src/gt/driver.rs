@@ -14,6 +14,7 @@ use super::games::{Adjacent, Decision, DecisionParams, Game, LaneOption, Needs, 
 use super::merge::UnderWay;
 use super::mpc::{self, Mpc, MpcError, MpcParams, MpcProblem, MpcSolution};
 use super::prediction::{self, Kinematics, SpeedBounds};
+use super::safety::{self, SafetyOverride, SafetyParams};
 use super::styles::CostWeights;
 use crate::dynamics::{Command, LANE_CHANGE_DURATION};
 use crate::road::{LaneChange, LaneId};
@@ -50,6 +51,9 @@ pub struct GtParams {
     pub mpc: MpcParams,
     /// Reading the world; the fallback.
     pub interaction: InteractionParams,
+    /// The safety layer over the games' acceleration (docs/design.md, "Safety layer").
+    #[serde(default)]
+    pub safety: SafetyParams,
 }
 
 /// The most prediction samples a preset may ask for (the defaults take 6; calibration 3-10).
@@ -112,6 +116,27 @@ impl GtParams {
                 return Err(format!("{key} must be a number >= 0, not {value}"));
             }
         }
+        let safety = &self.safety;
+        for (key, value) in [
+            ("safety.response_time", safety.response_time),
+            ("safety.brake", safety.brake),
+            ("safety.lead_brake", safety.lead_brake),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(format!("{key} must be a number > 0, not {value}"));
+            }
+        }
+        if !(safety.emergency_brake.is_finite() && safety.emergency_brake >= safety.brake) {
+            return Err(format!(
+                "safety.emergency_brake must be a number >= safety.brake ({}), not {}",
+                safety.brake, safety.emergency_brake
+            ));
+        }
+        for (key, value) in [("safety.margin", safety.margin), ("safety.cut_in_time", safety.cut_in_time)] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(format!("{key} must be a number >= 0, not {value}"));
+            }
+        }
         if p.samples == 0 {
             return Err("decision.prediction.samples must be at least 1".to_string());
         }
@@ -150,6 +175,15 @@ pub struct Diagnostics {
     pub plans: u32,
     /// Interior-point iterations of every QP since the start.
     pub iterations_total: u64,
+    /// How the safety layer lowered the last plan's acceleration, if it did.
+    #[serde(default)]
+    pub safety: Option<SafetyOverride>,
+    /// Plans whose acceleration the safety layer lowered since the start.
+    #[serde(default)]
+    pub overrides: u32,
+    /// Of those, the ones that braked harder than the games' a_min (emergencies).
+    #[serde(default)]
+    pub emergencies: u32,
 }
 
 /// A `gt` driver's settings and memory: plain data, part of the world's state.
@@ -491,17 +525,32 @@ pub fn decide(scene: &Scene, id: VehicleId, gt: &GtDriver) -> Decision {
     }
 }
 
-/// One control period of the `gt` driver of car `id`: decide, plan, or fall back.
-/// Reads the scene only; the world applies the returned step.
+/// One control period of the `gt` driver of car `id`: decide, keep safe, plan, or fall
+/// back. Reads the scene only; the world applies the returned step.
 pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) -> GtStep {
     let car = scene.car(id);
-    let decision = decide(scene, id, gt);
+    let mut decision = decide(scene, id, gt);
     let leads = gt.role == Role::Leader;
     let starts = decision.lane_change != LaneChange::Keep && car.target_lane == car.lane && leads;
     let aborts = decision.aborted && car.target_lane != car.lane && leads;
     let target = if starts { scene.lane_beside(car.lane, decision.lane_change) } else { None };
     let target = if aborts { car.lane } else { target.unwrap_or(car.target_lane) };
     let mut driver = GtDriver::clone(gt);
+    // The safety layer, outside the games: it only lowers the acceleration they decided.
+    let intent = safety::Intent {
+        target,
+        pace: decision.duration.or(gt.pace).unwrap_or(LANE_CHANGE_DURATION),
+        lag: gt.params.decision.merge.response_lag,
+        accel: decision.accel,
+        firm: -gt.params.decision.game.accel_min,
+    };
+    let limited = safety::limit(scene, id, &intent, &gt.params.safety);
+    if let Some(limited) = limited {
+        decision.accel = limited.accel;
+        driver.diagnostics.overrides += 1;
+        driver.diagnostics.emergencies += u32::from(limited.emergency);
+    }
+    driver.diagnostics.safety = limited;
     driver.decision = decision;
     // What the driver remembers of a change under way (`merge`): its pace and when it
     // crosses the line.
@@ -536,7 +585,11 @@ fn fallback(scene: &Scene, id: VehicleId, mut driver: GtDriver, error: &MpcError
     let params = &driver.params;
     let bounds = SpeedBounds { min: params.decision.game.speed_min, max: speed_limit(scene, car, car.lane) };
     let brake = (-params.interaction.fallback_brake).max(params.decision.game.accel_min);
-    let accel = prediction::feasible_accel(brake, car.state.vx, bounds, scene.control_dt);
+    let mut accel = prediction::feasible_accel(brake, car.state.vx, bounds, scene.control_dt);
+    // The safety layer's braking, if harder (`plan` has lowered the decision's).
+    if driver.diagnostics.safety.is_some() {
+        accel = accel.min(driver.decision.accel);
+    }
     let preview = scene.road.lane_center(car.lane);
     driver.decision = Decision { accel, lane_change: LaneChange::Keep, exact: false, ..driver.decision };
     driver.preview = Some(preview);

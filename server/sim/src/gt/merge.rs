@@ -88,8 +88,9 @@ fn blend(u: f64) -> f64 {
     u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
 }
 
-/// The u in [0, 1] at which `blend(u)` = `part` (clamped).
-fn phase(part: f64) -> f64 {
+/// The u in [0, 1] at which `blend(u)` = `part` (clamped): how far in time along a
+/// quintic lane change its offset has come `part` of the way (also `safety`'s).
+pub(super) fn phase(part: f64) -> f64 {
     let (mut low, mut high) = (0.0, 1.0);
     for _ in 0..40 {
         let mid = 0.5 * (low + high);

@@ -10,7 +10,8 @@
 //!
 //! One concern per file: `styles` (Table III), `costs` (eq. 9–14), `prediction` (motion
 //! over the decision horizon), `games` (eq. 15–18), `field` (eq. 19–21), `mpc` (eq.
-//! 22–29), `merge` (lane changes out of an ending lane that complete), `driver` (reading
+//! 22–29), `merge` (lane changes out of an ending lane that complete), `safety` (the
+//! override of the games' acceleration that keeps a safe distance), `driver` (reading
 //! the scene, the follower role, the fallback).
 //!
 //! ```
@@ -33,6 +34,7 @@ mod games;
 mod merge;
 mod mpc;
 mod prediction;
+mod safety;
 mod styles;
 
 // The surface: the driver, its constants, what it decides and reports, and the two
@@ -48,6 +50,7 @@ pub use games::{AdjacentLateral, Decision, DecisionParams, Game, GameParams};
 pub use merge::MergeParams;
 pub use mpc::{Mpc, MpcError, MpcParams, MpcSolution};
 pub use prediction::PredictionParams;
+pub use safety::{SafetyOverride, SafetyParams};
 pub use styles::{CostWeights, StyleProfile};
 
 #[cfg(test)]

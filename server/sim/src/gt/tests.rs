@@ -270,6 +270,12 @@ fn defaults_are_the_documented_ones() {
         [m.min_duration, m.response_lag, m.end_margin, m.stop_margin, m.crossing_speed],
         [3.0, 0.5, 1.0, 5.0, 2.0]
     );
+    let s = p.safety;
+    assert!(s.enabled);
+    assert_eq!(
+        [s.response_time, s.brake, s.lead_brake, s.emergency_brake, s.margin, s.cut_in_time],
+        [0.1, 8.0, 6.0, 8.0, 1.0, 1.0]
+    );
 }
 
 #[test]
@@ -568,4 +574,117 @@ fn the_merge_constants_are_checked() {
     params.decision.merge.min_duration = 3.0;
     params.decision.merge.stop_margin = -1.0;
     assert!(params.check().unwrap_err().contains("decision.merge.stop_margin"));
+}
+
+/// The safety layer's verdict on `accel` for car `ec` of `world`, changing to `target`.
+fn safety_limit(world: &mut World, ec: VehicleId, target: u32, accel: f64) -> Option<SafetyOverride> {
+    let params = world.gt_params(ec);
+    let intent = super::safety::Intent {
+        target: LaneId(target),
+        pace: crate::dynamics::LANE_CHANGE_DURATION,
+        lag: params.decision.merge.response_lag,
+        accel,
+        firm: -params.decision.game.accel_min,
+    };
+    super::safety::limit(world.scene(), ec, &intent, &params.safety)
+}
+
+/// EC (gt, lane 0, s = 100, 25 m/s) and one IDM car `other` set up by `set`.
+fn ec_and(other: (u32, f64, f64), set: impl FnOnce(&mut Vehicle)) -> (World, VehicleId, VehicleId) {
+    let (lane, s, speed) = other;
+    let cars = [("ec", 0, 100.0, 25.0, Style::Normal, gt(Game::Stackelberg, Role::Leader))];
+    let mut world = world_with(merge_road(1000.0), &cars);
+    let mut vehicle = Vehicle::new("other", world.road(), LaneId(lane), s, speed, Style::Normal, Driver::Idm);
+    set(&mut vehicle);
+    let other = world.add(vehicle);
+    let ec = world.find("ec").unwrap();
+    (world, ec, other)
+}
+
+#[test]
+fn a_car_cutting_in_at_a_short_gap_is_a_car_in_the_lane_and_one_far_ahead_is_not() {
+    // 7 m ahead (bumper to bumper) in lane 1 at 20 m/s, changing into EC's lane: RSS's
+    // distance (EC at 25 m/s) is not kept, so EC may not accelerate as its game decided.
+    let (mut world, ec, other) = ec_and((1, 112.0, 20.0), |v| v.target_lane = LaneId(0));
+    let limited = safety_limit(&mut world, ec, 0, 1.0).expect("the cut-in counts");
+    assert_eq!(limited.car, other);
+    assert!(limited.accel < 0.0 && limited.accel >= -4.0 && !limited.emergency, "{limited:?}");
+    // Keeping its own lane, it is no car of EC's.
+    let (mut world, ec, _) = ec_and((1, 112.0, 20.0), |_| {});
+    assert_eq!(safety_limit(&mut world, ec, 0, 1.0), None);
+    // Moving sideways towards EC's lane without a target lane (a learner steering itself):
+    // its body reaches into the lane within the cut-in time.
+    let (mut world, ec, _) = ec_and((1, 112.0, 20.0), |v| v.state.heading = 0.1);
+    assert!(safety_limit(&mut world, ec, 0, 1.0).is_some());
+    // Cutting in 60 m ahead at EC's speed: a safe gap.
+    let (mut world, ec, _) = ec_and((1, 165.0, 25.0), |v| v.target_lane = LaneId(0));
+    assert_eq!(safety_limit(&mut world, ec, 0, 1.0), None);
+}
+
+#[test]
+fn during_its_lane_change_the_av_keeps_its_distance_in_both_lanes_until_it_has_left_one() {
+    // EC starting a change from lane 0 to lane 1: a car 15 m ahead at 15 m/s in either lane
+    // is too close.
+    for lane in [0, 1] {
+        let (mut world, ec, other) = ec_and((lane, 120.0, 15.0), |_| {});
+        let limited = safety_limit(&mut world, ec, 1, 0.0).expect("a car ahead in a lane of the change");
+        assert_eq!(limited.car, other, "lane {lane}");
+    }
+    // Five eighths of the way across, EC's body is out of lane 0 within 0.4 s: the car
+    // ahead in the lane it leaves no longer matters; the one in the lane it enters does.
+    let across = |v: &mut Vehicle| {
+        v.state.d = -2.5;
+        v.target_lane = LaneId(1);
+    };
+    let (mut world, ec, _) = ec_and((0, 120.0, 15.0), |_| {});
+    across(world.vehicle_mut(ec));
+    assert_eq!(safety_limit(&mut world, ec, 1, 0.0), None);
+    let (mut world, ec, _) = ec_and((1, 120.0, 15.0), |_| {});
+    across(world.vehicle_mut(ec));
+    assert!(safety_limit(&mut world, ec, 1, 0.0).is_some());
+}
+
+#[test]
+fn the_av_brakes_harder_than_the_games_allow_only_when_a_collision_is_otherwise_certain() {
+    // On a one-lane road (no way out sideways), 20 m behind a car as fast that brakes at
+    // 6 m/s^2: the games' -4 would hit it.
+    let road = Road::new(
+        Pose { x: 0.0, y: 0.0, heading: 0.0 },
+        vec![Section::Straight { length: 1000.0 }],
+        4.0,
+        vec![25.0],
+        &[],
+    );
+    let cars = [("ec", 0, 100.0, 25.0, Style::Normal, gt(Game::Stackelberg, Role::Leader))];
+    let mut world = world_with(road.clone(), &cars);
+    let mut lead = Vehicle::new("lead", &road, LaneId(0), 125.0, 25.0, Style::Normal, Driver::Idm);
+    lead.command.accel = -6.0;
+    let other = world.add(lead);
+    let ec = world.find("ec").unwrap();
+    let step = plan_of(&mut world, ec);
+    assert!(step.command.accel < -4.0 && step.command.accel >= -8.0, "{}", step.command.accel);
+    let limited = step.driver.diagnostics.safety.expect("the layer acted");
+    assert!(limited.emergency && limited.car == other && limited.accel == step.command.accel);
+    assert_eq!((step.driver.diagnostics.overrides, step.driver.diagnostics.emergencies), (1, 1));
+    // Without the layer the AV brakes at most at the games' a_min.
+    let Driver::Gt(gt) = &mut world.vehicle_mut(ec).driver else { unreachable!() };
+    gt.params.safety.enabled = false;
+    let step = plan_of(&mut world, ec);
+    assert!(step.command.accel >= -4.0 && step.driver.diagnostics.safety.is_none());
+    // The same car holding its speed: no emergency.
+    let (mut world, ec, _) = ec_and((0, 125.0, 25.0), |_| {});
+    assert!(safety_limit(&mut world, ec, 0, 0.0).is_none_or(|limited| !limited.emergency));
+}
+
+#[test]
+fn the_safety_constants_are_checked() {
+    let mut params = GtParams::default();
+    params.safety.emergency_brake = 3.0;
+    assert!(params.check().unwrap_err().contains("safety.emergency_brake"));
+    let mut params = GtParams::default();
+    params.safety.response_time = 0.0;
+    assert!(params.check().unwrap_err().contains("safety.response_time"));
+    let mut params = GtParams::default();
+    params.safety.margin = f64::NAN;
+    assert!(params.check().unwrap_err().contains("safety.margin"));
 }

@@ -1,8 +1,7 @@
 //! The collision benchmark of issue 24: highway-gt.toml with an IDM car in the learner's
 //! place, 40 s per seed over seeds 0..99 (or SEEDS from FIRST), every collision printed
-//! with who is at fault (`tests/support/highway_gt.rs`: a car that changed into the
-//! other's lane within 3 s, else the car behind), then the totals (docs/design.md,
-//! "Safety layer"):
+//! with who is at fault as the world attributes it (docs/design.md, "Collision
+//! attribution"), then the totals (docs/design.md, "Safety layer"):
 //!
 //! `cargo run --release -p arena-sim --example highway_gt_safety [-- SEEDS [FIRST] [--no-safety] | -- --trace SEED CAR [FROM TO]]`
 //!
@@ -122,7 +121,7 @@ fn main() {
                 c.names[1],
                 c.drivers[1],
                 c.speeds[1],
-                c.fault,
+                c.fault(),
                 if c.gt_at_fault() { " [gt]" } else { "" }
             );
         }

@@ -21,7 +21,7 @@ fn at_fault(crashes: &[Crash]) -> Vec<String> {
     crashes
         .iter()
         .filter(|c| c.gt_at_fault())
-        .map(|c| format!("t={:.2} {} into {} ({:?})", c.time, c.names[0], c.names[1], c.fault))
+        .map(|c| format!("t={:.2} {} into {} ({:?})", c.time, c.names[0], c.names[1], c.fault()))
         .collect()
 }
 

@@ -1,46 +1,26 @@
 //! highway-gt.toml with an IDM car in the learner's place, and who is at fault in each
-//! of its collisions: shared by `examples/highway_gt_safety.rs` (the benchmark) and
-//! `tests/highway_gt_safety.rs` (a subset of its seeds). `at_fault` is the one place the
-//! blame is decided, until the world attributes collisions itself.
+//! of its collisions as the world attributes them (`Collision::at_fault`, docs/design.md
+//! "Collision attribution"): shared by `examples/highway_gt_safety.rs` (the benchmark) and
+//! `tests/highway_gt_safety.rs` (a subset of its seeds).
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use arena_sim::{Driver, DriverSpec, LaneId, Scenario, VehicleId, World, builtin_scenario};
-
-/// A lane change begun (or a lane line crossed) this recently (s) makes a collision with
-/// a car in the lane it went into its fault. 3, chosen here: a 4 s change crosses the
-/// line after 2 s and is centred 2 s later.
-pub const CUT_IN_WINDOW: f64 = 3.0;
-
-/// Who caused a collision.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Fault {
-    /// The car behind ran into the one ahead, which had not cut in on it.
-    Rear,
-    /// The car ahead cut in on the one behind.
-    Front,
-    /// Each had changed into the other's lane.
-    Both,
-}
+use arena_sim::{AtFault, Collision, Driver, DriverSpec, Scenario, World, builtin_scenario};
 
 /// One collision of a run, as it was at the tick it happened.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Crash {
     /// Simulated time (s).
     pub time: f64,
-    /// The car behind and the car ahead.
-    pub rear: VehicleId,
-    /// The car ahead.
-    pub front: VehicleId,
+    /// The two cars and who is at fault, as the world found them.
+    pub collision: Collision,
     /// Names of rear and front.
     pub names: [String; 2],
     /// Speeds of rear and front along the lane (m/s).
     pub speeds: [f64; 2],
     /// Drivers of rear and front: `idm`, `gt` or `agent`.
     pub drivers: [&'static str; 2],
-    /// Who caused it.
-    pub fault: Fault,
 }
 
 impl Crash {
@@ -48,65 +28,24 @@ impl Crash {
         self.drivers.map(|d| d == "gt")
     }
 
+    /// Who is at fault.
+    pub fn fault(&self) -> AtFault {
+        self.collision.at_fault
+    }
+
     /// Whether a game-theoretic car is at fault.
     pub fn gt_at_fault(&self) -> bool {
         let [rear, front] = self.gt();
-        match self.fault {
-            Fault::Rear => rear,
-            Fault::Front => front,
-            Fault::Both => rear || front,
+        match self.fault() {
+            AtFault::Rear => rear,
+            AtFault::Front => front,
+            AtFault::Both => rear || front,
         }
     }
 
     /// Whether a game-theoretic car took part.
     pub fn involves_gt(&self) -> bool {
         self.gt().contains(&true)
-    }
-}
-
-/// The lane changes each car made lately: per vehicle, the last instant it was changing
-/// (target lane != lane) or crossed a line, and into which lane.
-#[derive(Debug, Clone, Default)]
-pub struct Changes {
-    lane: Vec<LaneId>,
-    last: Vec<Option<(f64, LaneId)>>,
-}
-
-impl Changes {
-    /// Notes where every vehicle is after a tick.
-    pub fn observe(&mut self, world: &World) {
-        let count = world.vehicles().len();
-        if self.lane.len() != count {
-            self.lane = (0..count).map(|i| world.current_lane(VehicleId(i as u32))).collect();
-            self.last = vec![None; count];
-        }
-        for (i, vehicle) in world.vehicles().iter().enumerate() {
-            let lane = world.current_lane(VehicleId(i as u32));
-            if vehicle.target_lane != lane {
-                self.last[i] = Some((world.time(), vehicle.target_lane));
-            } else if lane != self.lane[i] {
-                self.last[i] = Some((world.time(), lane));
-            }
-            self.lane[i] = lane;
-        }
-    }
-
-    /// Whether car `a` changed into `b`'s lane (the lane `b` is in or going to) within
-    /// `CUT_IN_WINDOW` before `time`.
-    fn cut_in(&self, world: &World, a: VehicleId, b: VehicleId, time: f64) -> bool {
-        let lanes = [world.current_lane(b), world.vehicle(b).target_lane];
-        self.last[a.0 as usize].is_some_and(|(t, lane)| time - t <= CUT_IN_WINDOW && lanes.contains(&lane))
-    }
-}
-
-/// Who caused the collision of `rear` into `front` now: a car that changed into the
-/// other's lane within `CUT_IN_WINDOW`; otherwise the car behind.
-pub fn at_fault(world: &World, changes: &Changes, rear: VehicleId, front: VehicleId) -> Fault {
-    let time = world.time();
-    match (changes.cut_in(world, rear, front, time), changes.cut_in(world, front, rear, time)) {
-        (true, true) => Fault::Both,
-        (false, true) => Fault::Front,
-        _ => Fault::Rear,
     }
 }
 
@@ -169,8 +108,6 @@ pub fn with_safety(world: &World, enabled: bool) -> World {
 /// The first `seconds` of `world`, on one decision thread.
 pub fn run_world(mut world: World, seconds: f64) -> Run {
     world.set_decision_threads(1);
-    let mut changes = Changes::default();
-    changes.observe(&world);
     let ticks = (seconds / world.params().physics_dt).round() as u64;
     let mut crashes = Vec::new();
     for _ in 0..ticks {
@@ -180,15 +117,12 @@ pub fn run_world(mut world: World, seconds: f64) -> Run {
             let (rear, front) = (world.vehicle(collision.rear), world.vehicle(collision.front));
             crashes.push(Crash {
                 time: world.time(),
-                rear: collision.rear,
-                front: collision.front,
+                collision,
                 names: [rear.name.clone(), front.name.clone()],
                 speeds: [rear.state.lane_speed(), front.state.lane_speed()],
                 drivers: [driver_name(&rear.driver), driver_name(&front.driver)],
-                fault: at_fault(&world, &changes, collision.rear, collision.front),
             });
         }
-        changes.observe(&world);
     }
     let mut run = Run { crashes, ..Run::default() };
     for vehicle in world.vehicles() {

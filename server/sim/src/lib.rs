@@ -26,8 +26,8 @@ pub use dynamics::{
 };
 pub use gt::{
     AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, FieldParams, Game,
-    GameParams, GtDriver, GtParams, GtStep, InteractionParams, MergeParams, Mpc, MpcError, MpcParams, MpcSolution,
-    PredictionParams, StyleProfile, expert_decision, plan, plan_motion, stage_cost,
+    GameParams, GtDriver, GtParams, GtStep, InteractionParams, JerkParams, MergeParams, Mpc, MpcError, MpcParams,
+    MpcSolution, PredictionParams, StyleProfile, expert_decision, plan, plan_motion, stage_cost,
 };
 pub use preset::{BUILTIN_PRESETS, Preset, PresetError};
 pub use road::{LaneChange, LaneId, Pose, Road, Section};

@@ -10,8 +10,9 @@
 //!
 //! One concern per file: `styles` (Table III), `costs` (eq. 9–14), `prediction` (motion
 //! over the decision horizon), `games` (eq. 15–18), `field` (eq. 19–21), `mpc` (eq.
-//! 22–29), `merge` (lane changes out of an ending lane that complete), `driver` (reading
-//! the scene, the follower role, the fallback).
+//! 22–29), `merge` (lane changes out of an ending lane that complete), `jerk` (the jerk
+//! bound: accelerations reached along a ramp), `driver` (reading the scene, the follower
+//! role, the command, the fallback).
 //!
 //! ```
 //! use arena_sim::{Game, expert_decision, stage_cost};
@@ -30,6 +31,7 @@ mod costs;
 mod driver;
 mod field;
 mod games;
+mod jerk;
 mod merge;
 mod mpc;
 mod prediction;
@@ -45,6 +47,7 @@ pub use field::FieldParams;
 #[cfg(test)]
 use games::Needs;
 pub use games::{AdjacentLateral, Decision, DecisionParams, Game, GameParams};
+pub use jerk::JerkParams;
 pub use merge::MergeParams;
 pub use mpc::{Mpc, MpcError, MpcParams, MpcSolution};
 pub use prediction::PredictionParams;

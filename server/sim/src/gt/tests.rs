@@ -625,6 +625,10 @@ fn an_exempt_command_jumps_and_is_counted_by_its_reason() {
     assert_eq!(command_accel(1.0, 0.8, 0.1, Some(Exemption::Emergency), &mut driver), (0.8, false));
     let d = &driver.diagnostics;
     assert_eq!((d.abort_jumps, d.emergency_jumps), (1, 1));
+    // A bound must be a number > 0.
+    let mut params = GtParams::default();
+    params.decision.jerk.max_jerk = 0.0;
+    assert!(params.check().unwrap_err().contains("decision.jerk.max_jerk"));
     // The bound off: steps, never counted.
     driver.params.decision.jerk.enabled = false;
     assert_eq!(command_accel(1.0, -4.0, 0.1, None, &mut driver), (-4.0, false));

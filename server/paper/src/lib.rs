@@ -155,6 +155,10 @@ pub struct GtReport {
     pub fallbacks: u32,
     /// Decisions taken without a pure Nash equilibrium.
     pub inexact: u32,
+    /// Commands that left the jerk bound because a lane change was aborted (exempt).
+    pub abort_jumps: u32,
+    /// Commands that left the jerk bound because a safety override braked (exempt).
+    pub emergency_jumps: u32,
 }
 
 /// The state of the run at one control instant.
@@ -170,6 +174,8 @@ pub struct Sample {
     pub lane_change: LaneChange,
     /// EC's lateral offset (m).
     pub d: f64,
+    /// EC's commanded acceleration for the period that starts at `t` (m/s^2).
+    pub accel: f64,
     /// EC's stage cost at the end of the control period that starts at `t`.
     pub cost: CostComponents,
 }
@@ -251,13 +257,14 @@ pub fn run_world(
             Driver::Gt(gt) => gt.decision.lane_change,
             _ => LaneChange::Keep,
         };
+        let accel = world.vehicle(ec).command.accel;
         for _ in 1..substeps {
             world.tick();
         }
         // At the period's end, as the env samples its rewards: one definition of the RMS
         // for `arena paper` and `arena eval`.
         let cost = stage_cost(world.scene(), ec, &params);
-        samples.push(Sample { t, speeds, gaps, lane_change, d, cost });
+        samples.push(Sample { t, speeds, gaps, lane_change, d, accel, cost });
     }
     let collision = !world.collisions().is_empty() || matches!(world.vehicle(ec).status, Status::OffRoad);
     let trace = Trace { roles: roles.iter().map(|(_, r)| r.to_string()).collect(), samples };
@@ -278,6 +285,8 @@ pub fn run_world(
                 mean_qp_iterations: d.iterations_total as f64 / f64::from(d.plans.max(1)),
                 fallbacks: d.fallbacks,
                 inexact: d.inexact,
+                abort_jumps: d.abort_jumps,
+                emergency_jumps: d.emergency_jumps,
             };
             record.diagnostics.insert(role.to_string(), report);
         }

@@ -34,10 +34,12 @@ fn the_paper_fit_preset_loads_and_keeps_the_papers_orderings() {
     }
     assert!(records.iter().all(|r| !r.collision), "no collision with the fitted constants");
     // Issue 23: the stable K_s schedule left the fit at 38 of the 48 cells of Tables IV and
-    // VI within the paper's figure +-30 % (docs/paper-reproduction.md); no change may lose one.
+    // VI within the paper's figure +-30 %; issue 24's jerk bound moved one out (A
+    // conservative's Nash gap, docs/paper-reproduction.md says why). No change may lose
+    // another.
     let (within, cells) = compare::score(&compare::cells(&records));
     assert_eq!(cells, 48, "Tables IV and VI have 48 cells");
-    assert!(within >= 38, "paper-fit: {within} of 48 cells within +-30 %, fewer than 38");
+    assert!(within >= 37, "paper-fit: {within} of 48 cells within +-30 %, fewer than 37");
 }
 
 /// A small fit of Scenario A's runs toward `target`, from `start`.
@@ -60,14 +62,19 @@ fn a_fit_to_the_models_own_tables_recovers_the_constants_they_were_made_with() {
     // Known constants: AC aims for 20 m/s (the file: 22) and the games allow 2.5 m/s^2
     // (default 3). The target is the model's own Table IV under them; the fit starts
     // from the file's and the defaults, and must land within 5 % of each knob's range.
+    // The model is the AV without the jerk bound (issue 24): under it the games' a_max is
+    // reached only along a 4 m/s^3 ramp, Table IV hardly depends on it, and the same fit
+    // finds 2.73 for 2.5. What is tested is the fit, on constants the tables pin down.
     let names = ["merge.ac.target_speed", "game.accel_max"];
     let truth = [20.0, 2.5];
-    let mut known = PaperOptions::default();
+    let mut start = PaperOptions::default();
+    start.params.decision.jerk.enabled = false;
+    let mut known = start.clone();
     for (name, value) in names.iter().zip(truth) {
         knob(name).unwrap().set(&mut known, value);
     }
     let target = Target::from_records(&records(&[PaperScenario::A], &known).unwrap());
-    let fit = calibrate::fit(&spec(&names, target, PaperOptions::default(), 7, 2), None).unwrap();
+    let fit = calibrate::fit(&spec(&names, target, start, 7, 2), None).unwrap();
     for (name, value) in names.iter().zip(truth) {
         let knob = knob(name).unwrap();
         let found = knob.get(&fit.options);

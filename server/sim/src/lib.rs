@@ -20,14 +20,15 @@ mod world;
 // The surface, by the module that owns each item. What is not here stays inside: the
 // games, the field, the MPC's matrices, the integrator, IDM/MOBIL's internals.
 pub use dynamics::{
-    Command, DriverParams, LANE_CHANGE_BOUNDS, LANE_CHANGE_DURATION, LaneChangeBounds, LaneChangeResponse, LateralPath,
-    RK4_CHECK_SPEEDS, Style, VehicleParams, VehicleState, cruising_modes, lane_change_response, lane_change_trajectory,
-    lateral_modes, rk4_growth,
+    Command, DriverParams, JerkSummary, LANE_CHANGE_BOUNDS, LANE_CHANGE_DURATION, LaneChangeBounds, LaneChangeResponse,
+    LateralPath, RK4_CHECK_SPEEDS, Style, VehicleParams, VehicleState, commanded_jerk, cruising_modes,
+    lane_change_response, lane_change_trajectory, lateral_modes, longitudinal_jerk, rk4_growth,
 };
 pub use gt::{
     AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, FieldParams, Game,
-    GameParams, GtDriver, GtParams, GtStep, InteractionParams, MergeParams, Mpc, MpcError, MpcParams, MpcSolution,
-    PredictionParams, SafetyOverride, SafetyParams, StyleProfile, expert_decision, plan, plan_motion, stage_cost,
+    GameParams, GtDriver, GtParams, GtStep, InteractionParams, JerkParams, MergeParams, Mpc, MpcError, MpcParams,
+    MpcSolution, PredictionParams, SafetyOverride, SafetyParams, StyleProfile, expert_decision, plan, plan_motion,
+    stage_cost,
 };
 pub use preset::{BUILTIN_PRESETS, Preset, PresetError};
 pub use road::{LaneChange, LaneId, Pose, Road, Section};

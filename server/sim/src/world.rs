@@ -85,8 +85,17 @@ pub struct Vehicle {
     pub path: LateralPath,
     /// Speed the driver aims for (m/s).
     pub target_speed: f64,
-    /// The command applied during the current control period.
+    /// The command of the current control period. A `gt` car's acceleration ramps to
+    /// `command.accel` over the period from `ramp_from` (docs/design.md, "Jerk").
     pub command: Command,
+    /// Where the acceleration of a ramped command starts (m/s^2): the last period's
+    /// command; `None`: `command.accel` applies from the period's start.
+    #[serde(default)]
+    pub ramp_from: Option<f64>,
+    /// The model's longitudinal acceleration at the start of the last physics step (m/s^2):
+    /// v_x' of eq. (2) under the acceleration that step applied (`VehicleState::longitudinal_accel`).
+    #[serde(default)]
+    pub longitudinal_accel: f64,
     /// Driving, crashed, off road or gone.
     pub status: Status,
     /// Simulated time of the last MOBIL consultation (s).
@@ -109,6 +118,8 @@ impl Vehicle {
             path: LateralPath::hold(d),
             target_speed: speed,
             command: Command { accel: 0.0, preview: d },
+            ramp_from: None,
+            longitudinal_accel: 0.0,
             status: Status::Driving,
             last_lane_decision: f64::NEG_INFINITY,
             lane_entry: LaneEntry { lane, at: None },
@@ -536,6 +547,8 @@ impl World {
     }
 
     fn apply(&mut self, id: VehicleId, decision: Decision) {
+        let previous = self.vehicle(id).command.accel;
+        let mut ramp_from = None;
         let accel = match decision {
             Decision::Accel(accel) => accel,
             Decision::Idm(idm) => {
@@ -548,23 +561,30 @@ impl World {
                 idm.accel
             }
             Decision::Gt(step) => {
-                let GtStep { command, change_to, driver } = *step;
+                let GtStep { command, change_to, ramp, driver } = *step;
                 if let Some(lane) = change_to {
                     self.change_lane(id, lane);
                 }
+                ramp_from = ramp.then_some(previous);
                 let vehicle = self.vehicle_mut(id);
                 vehicle.command.preview = command.preview;
                 vehicle.driver = Driver::Gt(Box::new(driver));
                 command.accel
             }
         };
-        self.vehicles[id.0 as usize].command.accel = accel;
+        let vehicle = &mut self.vehicles[id.0 as usize];
+        vehicle.command.accel = accel;
+        vehicle.ramp_from = ramp_from;
     }
 
     /// Integrates every vehicle on the road over one physics step, all of them together
     /// (`dynamics::Fleet`).
     fn integrate(&mut self) {
         let time = self.time;
+        // Which step of its control period this is: a ramped acceleration is a linear
+        // blend reaching the command at the period's last step.
+        let per_control = self.params.substeps_per_control();
+        let phase = self.ticks % per_control + 1;
         let road = &self.scene.road;
         let (fleet, moving) = (&mut self.fleet, &mut self.moving);
         fleet.clear();
@@ -579,13 +599,12 @@ impl World {
                 Driver::Gt(_) => vehicle.command.preview,
                 _ => vehicle.path.preview(time, vehicle.driver_params.preview_time),
             };
-            fleet.push(
-                index as u64,
-                &self.steppers[index],
-                &vehicle.state,
-                vehicle.command,
-                road.curvature(vehicle.state.s),
-            );
+            let mut command = vehicle.command;
+            if let Some(from) = vehicle.ramp_from.filter(|_| phase < per_control) {
+                command.accel = from + (command.accel - from) * (phase as f64 / per_control as f64);
+            }
+            vehicle.longitudinal_accel = vehicle.state.longitudinal_accel(command.accel);
+            fleet.push(index as u64, &self.steppers[index], &vehicle.state, command, road.curvature(vehicle.state.s));
             moving.push(index as u32);
         }
         fleet.step();

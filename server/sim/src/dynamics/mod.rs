@@ -11,11 +11,13 @@
 //! One concern a file: `params` (Tables I and II), `state` (x and u of eq. 7-8), `model`
 //! (f(x, u), eq. 1-8, written once over `lanes::Lanes`), `integrate` (RK4 and `Stepper`),
 //! `fleet` (many vehicles a block at a time, the same bits), `linear` (eq. 22-24 for the
-//! MPC), `path` (the quintic lateral path drivers preview), and `physics_step` (what a
-//! physics step must do well: settle a lane change, keep RK4 stable).
+//! MPC), `path` (the quintic lateral path drivers preview), `physics_step` (what a
+//! physics step must do well: settle a lane change, keep RK4 stable), and `jerk` (the
+//! change of the longitudinal acceleration, as smoothness is measured).
 
 mod fleet;
 mod integrate;
+mod jerk;
 mod lanes;
 mod linear;
 mod model;
@@ -28,6 +30,7 @@ pub use fleet::Fleet;
 pub use integrate::Stepper;
 #[cfg(test)]
 pub(crate) use integrate::{rk4, step};
+pub use jerk::{JerkSummary, commanded_jerk, longitudinal_jerk};
 pub use linear::linearise;
 #[cfg(test)]
 use model::{derivative, fixed_steer_derivative};

@@ -115,6 +115,20 @@ pub(super) fn lateral_forces<const N: usize>(x: &StateLanes<N>, model: &Model<N>
     (-model.front_stiffness * front_slip * fade, -model.rear_stiffness * rear_slip * fade, inv_speed) // eq. (4)
 }
 
+/// Row 1 of eq. (8) (eq. 2): v_x' = v_y r + a_x, the longitudinal acceleration; 0 for a
+/// standing car it would roll back (a car does not reverse).
+#[inline(always)]
+pub(super) fn longitudinal_derivative<const N: usize>(
+    vx: Lanes<N>,
+    vy: Lanes<N>,
+    r: Lanes<N>,
+    accel: Lanes<N>,
+) -> Lanes<N> {
+    let vx_dot = vy * r + accel;
+    let stopped = lanes::mask(|i| vx.0[i] <= 0.0 && vx_dot.0[i] < 0.0);
+    Lanes::select(stopped, Lanes::splat(0.0), vx_dot)
+}
+
 /// Rows 1–3 of eq. (8) (eq. 2 with eq. 3): the body's speeds. A car does not reverse.
 #[inline(always)]
 pub(super) fn body_derivative<const N: usize>(
@@ -125,10 +139,8 @@ pub(super) fn body_derivative<const N: usize>(
     model: &Model<N>,
 ) -> [Lanes<N>; 3] {
     let [vx, vy, r, ..] = *x;
-    let vx_dot = vy * r + accel;
-    let stopped = lanes::mask(|i| vx.0[i] <= 0.0 && vx_dot.0[i] < 0.0);
     [
-        Lanes::select(stopped, Lanes::splat(0.0), vx_dot),
+        longitudinal_derivative(vx, vy, r, accel),
         -vx * r + (front * cos_steer + rear) * model.inv_mass,
         (model.front_axle * front * cos_steer - model.rear_axle * rear) * model.inv_inertia,
     ]

@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::lanes::{self, Lanes};
-use super::model::{Model, body_derivative, lateral_forces};
+use super::model::{Model, body_derivative, lateral_forces, longitudinal_derivative};
 use super::params::{DriverParams, VehicleParams};
 
 /// Number of states: [vx, vy, r, heading, s, d, steer, steer_rate] (eq. 8's x).
@@ -68,6 +68,14 @@ impl VehicleState {
         // was a tenth of a decision's time.
         let (sin, cos) = lanes::sin_cos(Lanes([self.heading]));
         self.vx * cos.0[0] - self.vy * sin.0[0]
+    }
+
+    /// Longitudinal acceleration in the body frame (m/s^2) under the applied acceleration
+    /// `accel`: v_x' of eq. (2), v_y r + a_x (0 for a standing car it would roll back). A
+    /// step of the command shows here whole, within one physics step.
+    pub fn longitudinal_accel(&self, accel: f64) -> f64 {
+        let lane = |value: f64| Lanes([value]);
+        longitudinal_derivative(lane(self.vx), lane(self.vy), lane(self.yaw_rate), lane(accel)).0[0]
     }
 
     /// Lateral acceleration in the body frame (m/s^2): v_y' + v_x r.

@@ -1,7 +1,8 @@
 //! The `gt` driver: reads a car's situation from the `Scene` (lead cars, adjacent cars,
 //! lane ends, through the scene's neighbour queries), plays the game of its role, plans
-//! Y_p with the MPC, and falls back to a safe command when the MPC fails. It returns a
-//! `GtStep`; the world applies it. Its memory (`GtDriver`) is plain data kept in the
+//! Y_p with the MPC, commands the first step of the decision's ramp at the jerk bound
+//! (`jerk`), and falls back to a safe command when the MPC fails. It returns a `GtStep`;
+//! the world applies it. Its memory (`GtDriver`) is plain data kept in the
 //! vehicle; the only scratch (the MPC's solver) does not affect results. Also the two
 //! questions the env asks of any vehicle: `stage_cost` and `expert_decision`, each with
 //! that vehicle's own parameters.
@@ -11,6 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::costs::{self, CostComponents};
 use super::field::{self, Field, FieldParams, Obstacle};
 use super::games::{Adjacent, Decision, DecisionParams, Game, LaneOption, Needs, Player, Situation};
+use super::jerk::{AccelRamp, Exemption};
 use super::merge::UnderWay;
 use super::mpc::{self, Mpc, MpcError, MpcParams, MpcProblem, MpcSolution};
 use super::prediction::{self, Kinematics, SpeedBounds};
@@ -79,6 +81,7 @@ impl GtParams {
             ("decision.prediction.horizon", p.horizon),
             ("decision.game.accel_max", g.accel_max),
             ("decision.game.accel_step", g.accel_step),
+            ("decision.jerk.max_jerk", self.decision.jerk.max_jerk),
             ("interaction.interaction_range", self.interaction.interaction_range),
         ];
         for (key, value) in positive {
@@ -184,6 +187,14 @@ pub struct Diagnostics {
     /// Of those, the ones that braked harder than the games' a_min (emergencies).
     #[serde(default)]
     pub emergencies: u32,
+    /// Commands since the start whose acceleration changed by more than the jerk bound
+    /// allows because a lane change was aborted (exempt: docs/design.md, "Jerk").
+    #[serde(default)]
+    pub abort_jumps: u32,
+    /// Commands since the start whose acceleration changed by more than the jerk bound
+    /// allows because a safety override braked (emergency braking, exempt).
+    #[serde(default)]
+    pub emergency_jumps: u32,
 }
 
 /// A `gt` driver's settings and memory: plain data, part of the world's state.
@@ -243,6 +254,10 @@ pub struct GtStep {
     pub command: Command,
     /// A lane change to start (or, on fallback, the current lane to return to).
     pub change_to: Option<LaneId>,
+    /// Whether the world ramps the acceleration over the period from the last command to
+    /// `command.accel` (the jerk bound); false: it applies at once (an exempt command, or
+    /// the bound off).
+    pub ramp: bool,
     /// The driver's new memory.
     pub driver: GtDriver,
 }
@@ -264,6 +279,7 @@ fn speed_limit(scene: &Scene, car: &Car, lane: LaneId) -> f64 {
 fn player(scene: &Scene, car: &Car, lane: LaneId, params: &GtParams) -> Player {
     Player {
         now: kinematics(car),
+        accel: car.accel,
         weights: CostWeights::for_style(car.style),
         bounds: SpeedBounds { min: params.decision.game.speed_min, max: speed_limit(scene, car, lane) },
     }
@@ -438,7 +454,7 @@ fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decisi
             let (accel, change) = observed(scene, partner);
             let sigma = if change.sigma() == side { side } else { 0 };
             let me = player(scene, scene.car(id), scene.car(id).lane, params);
-            let grid = params.decision.game.grid(me.now.speed, me.bounds, scene.control_dt);
+            let grid = params.decision.game.grid(me.now.speed, me.bounds, scene.control_dt, &params.decision.jerk);
             let side_game = view.side_game_with(side, vec![(accel, sigma)], grid, &params.decision, Needs::Replies);
             side_game.ac_actions[side_game.table.best_reply(0)] // eq. (17b)
         }
@@ -464,7 +480,7 @@ fn field_around(scene: &Scene, id: VehicleId, params: &FieldParams, one_sided: b
 }
 
 /// Plans Y_p toward `target` lane for car `id`, driven by `gt`, at acceleration `accel`
-/// with `mpc`.
+/// (held from now) with `mpc`.
 pub fn plan_motion(
     scene: &Scene,
     id: VehicleId,
@@ -473,17 +489,17 @@ pub fn plan_motion(
     target: LaneId,
     mpc: Option<&mut Mpc>,
 ) -> Result<MpcSolution, MpcError> {
-    plan_motion_with(scene, id, gt, &gt.params.mpc, accel, target, mpc)
+    plan_motion_with(scene, id, gt, &gt.params.mpc, AccelRamp::step(accel), target, mpc)
 }
 
 /// `plan_motion` with the MPC's constants `mpc_params` (a shortened lane change moves its
-/// preview point faster).
+/// preview point faster), a_x along `accel`.
 fn plan_motion_with(
     scene: &Scene,
     id: VehicleId,
     gt: &GtDriver,
     mpc_params: &MpcParams,
-    accel: f64,
+    accel: AccelRamp,
     target: LaneId,
     mpc: Option<&mut Mpc>,
 ) -> Result<MpcSolution, MpcError> {
@@ -525,6 +541,29 @@ pub fn decide(scene: &Scene, id: VehicleId, gt: &GtDriver) -> Decision {
     }
 }
 
+/// The acceleration to command this period for a car whose last command was `previous`,
+/// towards `target` (docs/design.md, "Jerk"), and whether the world ramps to it: the
+/// first step of the ramp at the jerk bound, or, for an exempt command, `target` at once,
+/// counted in `diagnostics` when that leaves the bound.
+pub(super) fn command_accel(
+    previous: f64,
+    target: f64,
+    dt: f64,
+    exemption: Option<Exemption>,
+    driver: &mut GtDriver,
+) -> (f64, bool) {
+    let jerk = driver.params.decision.jerk;
+    let Some(exemption) = exemption else { return (jerk.ramp(previous, target).at(dt), jerk.enabled) };
+    if (target - previous).abs() > jerk.step_limit(dt) {
+        let d = &mut driver.diagnostics;
+        match exemption {
+            Exemption::Abort => d.abort_jumps += 1,
+            Exemption::Emergency => d.emergency_jumps += 1,
+        }
+    }
+    (target, false)
+}
+
 /// One control period of the `gt` driver of car `id`: decide, keep safe, plan, or fall
 /// back. Reads the scene only; the world applies the returned step.
 pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) -> GtStep {
@@ -552,6 +591,14 @@ pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) 
     }
     driver.diagnostics.safety = limited;
     driver.decision = decision;
+    // The command ramps to the decision at the jerk bound unless exempt: an aborted lane
+    // change and a safety override brake at once (the safe distance assumes a response
+    // within `safety.response_time`).
+    let exemption = match limited {
+        _ if aborts => Some(Exemption::Abort),
+        Some(_) => Some(Exemption::Emergency),
+        None => None,
+    };
     // What the driver remembers of a change under way (`merge`): its pace and when it
     // crosses the line.
     let under_way = (starts || car.target_lane != car.lane) && !aborts;
@@ -564,7 +611,11 @@ pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) 
     if let Some(duration) = decision.duration.filter(|&t| t < LANE_CHANGE_DURATION) {
         mpc_params.max_step *= LANE_CHANGE_DURATION / duration;
     }
-    match plan_motion_with(scene, id, gt, &mpc_params, decision.accel, target, mpc) {
+    let ramp = match exemption {
+        Some(_) => AccelRamp::step(decision.accel),
+        None => gt.params.decision.jerk.ramp(car.accel, decision.accel),
+    };
+    match plan_motion_with(scene, id, gt, &mpc_params, ramp, target, mpc) {
         Ok(solution) => {
             driver.preview = Some(solution.preview);
             driver.plan = solution.plan;
@@ -572,14 +623,16 @@ pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) 
             driver.diagnostics.iterations = solution.iterations;
             driver.diagnostics.iterations_total += u64::from(solution.iterations);
             driver.diagnostics.plans += 1;
-            let command = Command { accel: decision.accel, preview: solution.preview };
-            GtStep { command, change_to: (target != car.target_lane).then_some(target), driver }
+            let (accel, ramp) = command_accel(car.accel, decision.accel, scene.control_dt, exemption, &mut driver);
+            let command = Command { accel, preview: solution.preview };
+            GtStep { command, change_to: (target != car.target_lane).then_some(target), ramp, driver }
         }
         Err(error) => fallback(scene, id, driver, &error),
     }
 }
 
-/// The safe command: keep (or return to) the current lane, brake within bounds.
+/// The safe command: keep (or return to) the current lane, brake within bounds, the
+/// braking reached at the jerk bound (at once under a safety override).
 fn fallback(scene: &Scene, id: VehicleId, mut driver: GtDriver, error: &MpcError) -> GtStep {
     let car = scene.car(id);
     let params = &driver.params;
@@ -601,5 +654,7 @@ fn fallback(scene: &Scene, id: VehicleId, mut driver: GtDriver, error: &MpcError
     driver.diagnostics.iterations = 0;
     driver.diagnostics.plans += 1;
     let change_to = (car.target_lane != car.lane).then_some(car.lane);
-    GtStep { command: Command { accel, preview }, change_to, driver }
+    let exemption = driver.diagnostics.safety.map(|_| Exemption::Emergency);
+    let (accel, ramp) = command_accel(car.accel, accel, scene.control_dt, exemption, &mut driver);
+    GtStep { command: Command { accel, preview }, change_to, ramp, driver }
 }

@@ -5,11 +5,14 @@
 //! (eq. 16c–f / 18c–f); EC keeps the side whose equilibrium costs it least (eq. 16a / 18a).
 //!
 //! The strategy sets are acceleration grids within [a_min, a_max], clipped so the speed
-//! stays within its bounds over the next control period.
+//! stays within its bounds over the next control period. Each is a target, reached from
+//! the player's last command at the jerk bound (`jerk`): its predicted motion and its
+//! comfort cost follow that ramp.
 
 use serde::{Deserialize, Serialize};
 
 use super::costs::{self, CostComponents, CostParams};
+use super::jerk::{AccelRamp, JerkParams};
 use super::merge::{self, Crossing, MergeParams, UnderWay};
 use super::prediction::{self, Kinematics, PredictionParams, SpeedBounds};
 use super::styles::CostWeights;
@@ -92,13 +95,15 @@ impl Default for GameParams {
 
 impl GameParams {
     /// The acceleration grid for a car at `speed` within `bounds`, each value clipped to
-    /// what the next control period `dt` allows, duplicates dropped, ascending.
-    pub fn grid(&self, speed: f64, bounds: SpeedBounds, dt: f64) -> Vec<f64> {
+    /// what the next control period `dt` allows and to what `jerk` lets it settle from on
+    /// the bounds (`JerkParams::envelope`), duplicates dropped, ascending.
+    pub fn grid(&self, speed: f64, bounds: SpeedBounds, dt: f64, jerk: &JerkParams) -> Vec<f64> {
         let steps = ((self.accel_max - self.accel_min) / self.accel_step).round().max(0.0) as usize;
+        let (low, high) = jerk.envelope(speed, bounds);
         let mut grid: Vec<f64> = Vec::with_capacity(steps + 1);
         for k in 0..=steps {
             let a = (self.accel_min + k as f64 * self.accel_step).min(self.accel_max);
-            let a = prediction::feasible_accel(a, speed, bounds, dt);
+            let a = prediction::feasible_accel(a, speed, bounds, dt).clamp(low, high);
             if grid.last().is_none_or(|&last| a > last) {
                 grid.push(a);
             }
@@ -237,6 +242,8 @@ impl PayoffTable {
 pub struct Player {
     /// Now.
     pub now: Kinematics,
+    /// Its last commanded acceleration (m/s^2), where its candidates ramp from (`jerk`).
+    pub accel: f64,
     /// Table III for its style.
     pub weights: CostWeights,
     /// v_min and v_max of its lane.
@@ -311,6 +318,9 @@ pub struct DecisionParams {
     /// Lane changes out of an ending lane (docs/design.md, "Merging that completes").
     #[serde(default)]
     pub merge: MergeParams,
+    /// The jerk bound (docs/design.md, "Jerk").
+    #[serde(default)]
+    pub jerk: JerkParams,
 }
 
 /// What a game decided for EC.
@@ -427,11 +437,22 @@ struct Samples {
     ac_lead: Vec<Kinematics>,
 }
 
+/// J_rc of eq. (13) with a_x along `ramp`, averaged over the horizon's samples as the
+/// other costs are: the target's own where every sample comes after the ramp.
+fn ramp_comfort(c: &CostParams, p: &PredictionParams, sigma: i8, ramp: AccelRamp, lateral_accel: f64) -> f64 {
+    let first = p.times().next().unwrap_or(0.0);
+    if ramp.duration() <= first {
+        return costs::comfort(c, sigma, ramp.to, lateral_accel);
+    }
+    let sum: f64 = p.times().map(|t| costs::comfort(c, sigma, ramp.at(t), lateral_accel)).sum();
+    sum / p.samples.max(1) as f64
+}
+
 fn constant_speed(p: &PredictionParams, car: Option<Kinematics>) -> Vec<Kinematics> {
     let mut out = Vec::new();
     if let Some(car) = car {
         let bounds = SpeedBounds { min: 0.0, max: f64::INFINITY };
-        prediction::predict(p, car, 0.0, bounds, None, &mut out);
+        prediction::predict(p, car, AccelRamp::step(0.0), bounds, None, &mut out);
     }
     out
 }
@@ -474,9 +495,10 @@ impl Situation {
             return Some(longest);
         };
         let (speed, bounds, m) = (self.ego.now.speed, self.ego_bounds(option, &params.game), &params.merge);
+        let ramp = params.jerk.ramp(self.ego.accel, accel);
         match under_way {
-            Some(u) => crossing.fit(m, longest, |t| crossing.time_under_way(u, t), speed, accel, bounds),
-            None => crossing.fit(m, longest, |t| crossing.time_from_rest(m, t), speed, accel, bounds),
+            Some(u) => crossing.fit(m, longest, |t| crossing.time_under_way(u, t), speed, ramp, bounds),
+            None => crossing.fit(m, longest, |t| crossing.time_from_rest(m, t), speed, ramp, bounds),
         }
     }
 
@@ -516,24 +538,48 @@ impl Situation {
         m.enabled && self.lane_end.is_some() && off && self.ego.now.speed >= m.crossing_speed
     }
 
-    /// Whether EC can still stop `margin` short of its lane's end, braking at a_min.
-    fn can_stop(&self, params: &DecisionParams, margin: f64) -> bool {
-        let brake = -params.game.accel_min;
-        self.lane_end.is_none_or(|left| merge::can_stop(self.ego.now.speed, brake, left, margin))
+    /// Whether EC can still stop `margin` short of its lane's end, braking towards a_min
+    /// from its last command at the jerk bound, or at once when the braking is exempt
+    /// from the bound (`exempt`: an abort, `jerk::Exemption`).
+    fn can_stop(&self, params: &DecisionParams, margin: f64, exempt: bool) -> bool {
+        let a_min = params.game.accel_min;
+        let ramp = if exempt { AccelRamp::step(a_min) } else { params.jerk.ramp(self.ego.accel, a_min) };
+        self.lane_end.is_none_or(|left| merge::can_stop(self.ego.now.speed, ramp, left, margin))
     }
 
     /// Of the accelerations `grid` that keep EC's lane, those after one control period of
-    /// which EC can still stop `stop_margin` short of its lane's end braking at a_min; all
-    /// of them if its lane does not end or none can (`merge`).
-    fn keeping(&self, grid: Vec<f64>, params: &DecisionParams) -> Vec<f64> {
+    /// which EC can still stop `stop_margin` short of its lane's end braking towards a_min
+    /// at the jerk bound; all of them if its lane does not end (`merge`). The period's
+    /// command ramps from the last one, or with `exempt` (an abort) is the acceleration
+    /// itself. If none can: all of them when the jerk bound is off (the next period may
+    /// brake at a_min at once), else those that stop shortest, since under the bound a
+    /// command let go climbs for periods before it can brake again.
+    fn keeping(&self, grid: Vec<f64>, params: &DecisionParams, exempt: bool) -> Vec<f64> {
         let Some(left) = self.lane_end.filter(|_| params.merge.enabled) else { return grid };
-        let (speed, dt, brake) = (self.ego.now.speed, self.period, -params.game.accel_min);
+        let (speed, dt, a_min) = (self.ego.now.speed, self.period, params.game.accel_min);
         let bounds = SpeedBounds { min: params.game.speed_min, max: f64::INFINITY };
+        // After one period: how far EC went, how fast it goes, how it brakes from there.
+        let after = |a: f64| {
+            let first = if exempt { AccelRamp::step(a) } else { params.jerk.ramp(self.ego.accel, a) };
+            let (ds, v) = prediction::advance_ramp(speed, first, bounds, dt);
+            (ds, v, params.jerk.ramp(first.at(dt), a_min))
+        };
         let stops = |a: f64| {
-            let (ds, v) = prediction::advance(speed, a, bounds, dt);
+            let (ds, v, brake) = after(a);
             merge::can_stop(v, brake, left - ds, params.merge.stop_margin)
         };
-        if grid.iter().any(|&a| stops(a)) { grid.into_iter().filter(|&a| stops(a)).collect() } else { grid }
+        if grid.iter().any(|&a| stops(a)) {
+            return grid.into_iter().filter(|&a| stops(a)).collect();
+        }
+        if !params.jerk.enabled {
+            return grid;
+        }
+        let reach = |a: f64| {
+            let (ds, v, brake) = after(a);
+            ds + merge::stopping_distance(v, brake)
+        };
+        let shortest = grid.iter().map(|&a| reach(a)).fold(f64::INFINITY, f64::min);
+        grid.into_iter().filter(|&a| reach(a) <= shortest).collect()
     }
 
     /// The lane change under way, while it binds: its lane is still an option.
@@ -562,9 +608,9 @@ impl Situation {
         for &sigma in sigmas {
             let Some(option) = self.option(sigma) else { continue };
             let bounds = self.ego_bounds(option, game);
-            let grid = game.grid(self.ego.now.speed, bounds, self.period);
+            let grid = game.grid(self.ego.now.speed, bounds, self.period, &params.jerk);
             if sigma == 0 {
-                actions.extend(self.keeping(grid, params).into_iter().map(|a| (a, 0)));
+                actions.extend(self.keeping(grid, params, false).into_iter().map(|a| (a, 0)));
                 continue;
             }
             if committed.is_none() && self.unsettled(params) {
@@ -575,12 +621,15 @@ impl Situation {
             // A change under way is given up if EC can still stop before the end; one is
             // not started if EC can stop with room to pull out later.
             let m = &params.merge;
-            let stops = fits.is_empty()
-                && self.can_stop(params, if committed.is_some() { m.end_margin } else { m.stop_margin });
-            if stops && committed.is_some() {
+            // An abort brakes at once (exempt from the jerk bound); a change not started
+            // leaves a way out at the bound.
+            let aborting = committed.is_some();
+            let stops =
+                fits.is_empty() && self.can_stop(params, if aborting { m.end_margin } else { m.stop_margin }, aborting);
+            if stops && aborting {
                 // Abort: brake in the lane instead (the game of the lane kept).
-                let keep = game.grid(self.ego.now.speed, self.ego_bounds(&self.keep, game), self.period);
-                actions.extend(self.keeping(keep, params).into_iter().map(|a| (a, 0)));
+                let keep = game.grid(self.ego.now.speed, self.ego_bounds(&self.keep, game), self.period, &params.jerk);
+                actions.extend(self.keeping(keep, params, true).into_iter().map(|a| (a, 0)));
             } else if stops {
                 continue;
             } else if fits.is_empty() {
@@ -598,8 +647,8 @@ impl Situation {
         let ec_actions = self.ec_actions(side, params);
         let option = self.option(side).copied();
         let adjacent = option.and_then(|o| o.adjacent);
-        let ac_actions =
-            adjacent.map_or(vec![0.0], |ac| params.game.grid(ac.player.now.speed, ac.player.bounds, self.period));
+        let grid = |ac: Adjacent| params.game.grid(ac.player.now.speed, ac.player.bounds, self.period, &params.jerk);
+        let ac_actions = adjacent.map_or(vec![0.0], grid);
         self.side_game_with(side, ec_actions, ac_actions, params, needs)
     }
 
@@ -737,7 +786,8 @@ impl Situation {
                 let target = self.option(sigma).unwrap_or(&self.keep);
                 let bounds = self.ego_bounds(target, &params.game);
                 let path = (sigma != 0).then(|| self.lane_change_path(target, duration));
-                prediction::predict(p, self.ego.now, accel, bounds, path.as_ref(), &mut out);
+                let ramp = params.jerk.ramp(self.ego.accel, accel);
+                prediction::predict(p, self.ego.now, ramp, bounds, path.as_ref(), &mut out);
                 out
             })
             .collect();
@@ -747,7 +797,8 @@ impl Situation {
                 .iter()
                 .map(|&accel| {
                     let mut out = Vec::new();
-                    prediction::predict(p, adj.player.now, accel, adj.player.bounds, None, &mut out);
+                    let ramp = params.jerk.ramp(adj.player.accel, accel);
+                    prediction::predict(p, adj.player.now, ramp, adj.player.bounds, None, &mut out);
                     out
                 })
                 .collect(),
@@ -765,13 +816,19 @@ impl Situation {
         }
     }
 
+    /// AC's J_rc of eq. (13) for its action `accel` over the horizon (unweighted).
+    fn ac_comfort(&self, params: &DecisionParams, adj: &Adjacent, accel: f64) -> f64 {
+        let ramp = params.jerk.ramp(adj.player.accel, accel);
+        ramp_comfort(&params.costs, &params.prediction, 0, ramp, 0.0)
+    }
+
     /// AC's row-independent cost terms (`AcTerms`); `None` with no adjacent car.
     fn ac_terms(&self, cell: &Cell, ac_actions: &[f64]) -> Option<AcTerms> {
         let (samples, c) = (cell.samples, &cell.params.costs);
         let adj = cell.option.and_then(|o| o.adjacent)?;
         let w = &adj.player.weights;
         let limit = adj.player.bounds.max;
-        let comfort = ac_actions.iter().map(|&a| w.comfort * costs::comfort(c, 0, a, 0.0)).collect();
+        let comfort = ac_actions.iter().map(|&a| w.comfort * self.ac_comfort(cell.params, &adj, a)).collect();
         let efficiency = (c.lead_range <= 0.0 && samples.ac.len() == ac_actions.len()).then(|| {
             samples
                 .ac
@@ -846,7 +903,8 @@ impl Situation {
         let ac_path = samples.ac.get(col);
         let target = self.option(sigma).unwrap_or(&self.keep);
         let lateral_accel = prediction::lane_change_accel_over(self.lane_width, samples.durations[row]);
-        let ec_comfort = costs::comfort(c, sigma, accel, lateral_accel);
+        let ramp = cell.params.jerk.ramp(self.ego.accel, accel);
+        let ec_comfort = ramp_comfort(c, &cell.params.prediction, sigma, ramp, lateral_accel);
         let mut ec_sum = CostComponents::default();
         for (k, &ego) in ec_path.iter().enumerate() {
             let ac = ac_path.map(|path| path[k]);
@@ -884,7 +942,7 @@ impl Situation {
             return 0.0;
         };
         let ec_path = &samples.ec[row];
-        let ac_comfort = costs::comfort(c, 0, ac_accel, 0.0);
+        let ac_comfort = self.ac_comfort(cell.params, &adj, ac_accel);
         let mut ac_sum = 0.0;
         for (k, &ego) in ec_path.iter().enumerate() {
             let ac = ac_path[k];

@@ -15,6 +15,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::jerk::AccelRamp;
 use super::prediction::{self, SpeedBounds};
 
 /// The constants of lane changes out of an ending lane.
@@ -165,7 +166,7 @@ impl Crossing {
 
     /// The full-width duration T (s) of the slowest lane change within [`min_duration`,
     /// `longest`] whose crossing, `time(T)` seconds from now, comes `end_margin` before
-    /// the end at `crossing_speed` or faster, holding `accel` from `speed` within
+    /// the end at `crossing_speed` or faster, driving `ramp` from `speed` within
     /// `bounds`; `None` if none does.
     pub fn fit(
         &self,
@@ -173,13 +174,13 @@ impl Crossing {
         longest: f64,
         time: impl Fn(f64) -> f64,
         speed: f64,
-        accel: f64,
+        ramp: AccelRamp,
         bounds: SpeedBounds,
     ) -> Option<f64> {
         let room = self.left - params.end_margin;
         let fits = |duration: f64| {
             let t = time(duration);
-            let (ds, v) = prediction::advance(speed, accel, bounds, t);
+            let (ds, v) = prediction::advance_ramp(speed, ramp, bounds, t);
             t == 0.0 || (ds <= room && v >= params.crossing_speed)
         };
         if fits(longest) {
@@ -199,10 +200,23 @@ impl Crossing {
     }
 }
 
-/// Whether a car at `speed` braking at `brake` (m/s^2, > 0) stops `margin` short of a
-/// point `left` metres ahead.
-pub fn can_stop(speed: f64, brake: f64, left: f64, margin: f64) -> bool {
-    speed.max(0.0).powi(2) / (2.0 * brake) <= left - margin
+/// Whether a car at `speed` braking along `ramp` (towards `ramp.to` < 0, m/s^2) stops
+/// `margin` short of a point `left` metres ahead.
+pub fn can_stop(speed: f64, ramp: AccelRamp, left: f64, margin: f64) -> bool {
+    stopping_distance(speed, ramp) <= left - margin
+}
+
+/// How far a car at `speed` travels braking along `ramp` until it stands (m): v^2 / 2b
+/// for a step to -b, plus what the ramp down to -b covers first.
+pub fn stopping_distance(speed: f64, ramp: AccelRamp) -> f64 {
+    let brake = -ramp.to;
+    let rise = ramp.duration();
+    if rise == 0.0 {
+        return speed.max(0.0).powi(2) / (2.0 * brake);
+    }
+    let bounds = SpeedBounds { min: 0.0, max: f64::INFINITY };
+    let (ds, v) = prediction::advance_ramp(speed.max(0.0), ramp, bounds, rise);
+    ds + v * v / (2.0 * brake)
 }
 
 #[cfg(test)]
@@ -219,7 +233,7 @@ mod tests {
     /// `Crossing::fit` for a change starting now.
     fn start(c: &Crossing, speed: f64, accel: f64) -> Option<f64> {
         let p = MergeParams::default();
-        c.fit(&p, LANE_CHANGE_DURATION, |t| c.time_from_rest(&p, t), speed, accel, BOUNDS)
+        c.fit(&p, LANE_CHANGE_DURATION, |t| c.time_from_rest(&p, t), speed, AccelRamp::step(accel), BOUNDS)
     }
 
     #[test]
@@ -261,7 +275,7 @@ mod tests {
         // A fifth of the way across, predicted to cross in 0.9 s at a 4 s pace: 18 m at 20 m/s.
         let early = Crossing { from: -3.2, ..crossing(20.0) };
         let under_way = UnderWay { pace: 4.0, crossing_in: Some(0.9) };
-        let fit = |c: &Crossing| c.fit(&p, 4.0, |t| c.time_under_way(under_way, t), 20.0, 0.0, BOUNDS);
+        let fit = |c: &Crossing| c.fit(&p, 4.0, |t| c.time_under_way(under_way, t), 20.0, AccelRamp::step(0.0), BOUNDS);
         assert!((early.time_under_way(under_way, 4.0) - 0.9).abs() < 1e-12);
         assert_eq!(fit(&early), Some(4.0));
         // 15 m of room: 0.75 s, at a pace of 3.33 s.
@@ -278,7 +292,8 @@ mod tests {
         assert_eq!(early.time_under_way(late, 4.0), f64::INFINITY);
         let moving = Crossing { lateral_speed: 0.5, ..early };
         assert!((moving.time_under_way(late, 4.0) - 2.4).abs() < 1e-12);
-        assert_eq!(moving.fit(&p, 4.0, |t| moving.time_under_way(late, t), 20.0, 0.0, BOUNDS), None);
+        let hold = AccelRamp::step(0.0);
+        assert_eq!(moving.fit(&p, 4.0, |t| moving.time_under_way(late, t), 20.0, hold, BOUNDS), None);
         // A quarter of the way across, by its lateral speed too: held back, it is late.
         let quarter = Crossing { from: -3.0, lateral_speed: 0.5, ..crossing(20.0) };
         assert_eq!(quarter.time_under_way(under_way, 4.0), 2.0);
@@ -286,9 +301,16 @@ mod tests {
     }
 
     #[test]
-    fn stopping_distance() {
-        assert!(can_stop(20.0, 4.0, 51.0, 1.0));
-        assert!(!can_stop(20.0, 4.0, 50.0, 1.0));
-        assert!(can_stop(0.0, 4.0, 1.0, 1.0));
+    fn stopping_distance_at_once_and_at_the_jerk_bound() {
+        let brake = AccelRamp::step(-4.0);
+        assert!(can_stop(20.0, brake, 51.0, 1.0));
+        assert!(!can_stop(20.0, brake, 50.0, 1.0));
+        assert!(can_stop(0.0, brake, 1.0, 1.0));
+        // From +1 m/s^2 down to -4 at 2.5 m/s^3: 2 s of ramp, 20 -> 17 m/s over 38.7 m
+        // (20 t + t^2 / 2 - 2.5 t^3 / 6 at t = 2, v = 20 + t - 1.25 t^2), then 17^2 / 8.
+        let ramp = AccelRamp { from: 1.0, to: -4.0, rate: 2.5 };
+        let expected = 40.0 + 2.0 - 2.5 * 8.0 / 6.0 + 17.0f64.powi(2) / 8.0;
+        assert!((stopping_distance(20.0, ramp) - expected).abs() < 1e-9, "{}", stopping_distance(20.0, ramp));
+        assert!(!can_stop(20.0, ramp, 51.0, 1.0) && can_stop(20.0, ramp, expected + 1.0, 1.0));
     }
 }

@@ -11,8 +11,9 @@
 //! One concern per file: `styles` (Table III), `costs` (eq. 9–14), `prediction` (motion
 //! over the decision horizon), `games` (eq. 15–18), `field` (eq. 19–21), `mpc` (eq.
 //! 22–29), `merge` (lane changes out of an ending lane that complete), `safety` (the
-//! override of the games' acceleration that keeps a safe distance), `driver` (reading
-//! the scene, the follower role, the fallback).
+//! override of the games' acceleration that keeps a safe distance), `jerk` (the jerk
+//! bound: accelerations reached along a ramp), `driver` (reading the scene, the follower
+//! role, the command, the fallback).
 //!
 //! ```
 //! use arena_sim::{Game, expert_decision, stage_cost};
@@ -31,6 +32,7 @@ mod costs;
 mod driver;
 mod field;
 mod games;
+mod jerk;
 mod merge;
 mod mpc;
 mod prediction;
@@ -47,6 +49,7 @@ pub use field::FieldParams;
 #[cfg(test)]
 use games::Needs;
 pub use games::{AdjacentLateral, Decision, DecisionParams, Game, GameParams};
+pub use jerk::JerkParams;
 pub use merge::MergeParams;
 pub use mpc::{Mpc, MpcError, MpcParams, MpcSolution};
 pub use prediction::PredictionParams;

@@ -2,7 +2,8 @@
 //! linearised, discretised driver + bicycle model (eq. 22–24, `dynamics`), with the
 //! potential field (eq. 19–21) as its first output, linearised along the predicted path,
 //! the lateral error to the target lane's centre and the heading error as the other two.
-//! The input is the preview point Y_p; a_x is the game's decision, held over the horizon.
+//! The input is the preview point Y_p; a_x is the game's decision, reached from the last
+//! command at the jerk bound and then held over the horizon (`jerk::AccelRamp`).
 //!
 //! Condensed, the problem is a QP in the N_c input increments, solved by clarabel. The
 //! solver is built once per problem size and then only has P, q and b overwritten
@@ -17,6 +18,7 @@ use nalgebra::{DMatrix, DVector, SVector};
 use serde::{Deserialize, Serialize};
 
 use super::field::Field;
+use super::jerk::AccelRamp;
 use crate::dynamics::{self, Command, DriverParams, STATES, VehicleParams, VehicleState};
 
 /// The MPC's constants; the paper leaves all of them open.
@@ -69,8 +71,8 @@ impl Default for MpcParams {
 pub struct MpcProblem<'a> {
     /// The car now.
     pub state: VehicleState,
-    /// a_x over the horizon (the decision's).
-    pub accel: f64,
+    /// a_x over the horizon: the decision's, along its ramp from the last command.
+    pub accel: AccelRamp,
     /// u(k-1): the preview point applied last period (m).
     pub previous_preview: f64,
     /// The target lane's centre (m): y_2 is measured from it.
@@ -139,11 +141,14 @@ pub struct Qp {
 pub(crate) fn build_qp(problem: &MpcProblem, params: &MpcParams) -> Qp {
     let n = params.control_horizon.max(1);
     let u_prev = problem.previous_preview.clamp(problem.preview_bounds.0, problem.preview_bounds.1);
-    let command = Command { accel: problem.accel, preview: u_prev };
+    let command = Command { accel: problem.accel.to, preview: u_prev };
     let lin = dynamics::linearise(&problem.state, command, problem.curvature, problem.vehicle, problem.driver); // eq. (22)–(23)
     let disc = lin.discretise(problem.dt); // eq. (24)
     let b_y: SVector<f64, STATES> = disc.b.column(1).into_owned();
-    let drift: SVector<f64, STATES> = disc.b.column(0) * problem.accel + disc.offset;
+    let b_a: SVector<f64, STATES> = disc.b.column(0).into_owned();
+    // a_x over step k: the ramp's mean over it (its value mid-step, as the world ramps a
+    // command over the period), the decision's once it is reached.
+    let drift = |k: usize| b_a * problem.accel.at((k as f64 + 0.5) * problem.dt) + disc.offset;
     let mut nominal: Vec<f64> = problem.nominal.iter().skip(1).copied().collect();
     nominal.resize(n, 0.0);
 
@@ -157,7 +162,7 @@ pub(crate) fn build_qp(problem: &MpcProblem, params: &MpcParams) -> Qp {
         q.axpy(constant * weight, gain, 1.0);
     };
     for k in 0..params.prediction_horizon {
-        x = disc.a * x + b_y * u_prev + drift; // eq. (24) with u(k) = u(k-1) + sum of Delta u
+        x = disc.a * x + b_y * u_prev + drift(k); // eq. (24) with u(k) = u(k-1) + sum of Delta u
         for (j, column) in sens.iter_mut().enumerate() {
             *column = disc.a * *column + if j <= k { b_y } else { SVector::zeros() };
         }

@@ -153,8 +153,15 @@ fn least_gap(rear: Braking, lead_speed: f64, lead_brake: f64, gap: f64, horizon:
         .fold(f64::INFINITY, f64::min)
 }
 
+/// The bumper gap (m) to keep to a car `gap` m ahead: the margin, or, already within it
+/// (a car that just cut in, or one beside that pulls ahead), the gap as it is: no
+/// response undoes the present, and one pulling away leaves nothing to answer.
+fn kept(gap: f64, params: &SafetyParams) -> f64 {
+    params.margin.min(gap)
+}
+
 /// The largest acceleration in [`floor`, `accel`] that a car at `speed` may hold for the
-/// response time and, braking at a_min,brake after it, still keep `margin` to a car `gap`
+/// response time and, braking at a_min,brake after it, still keep `kept` to a car `gap`
 /// m ahead at `lead_speed` braking at a_max,brake, over the next `horizon` s: RSS's safe
 /// distance (Definition 1) as the least gap over time. `floor` when none does.
 pub fn safe_accel(
@@ -166,7 +173,7 @@ pub fn safe_accel(
 ) -> f64 {
     let keeps = |a: f64| {
         let rear = Braking { speed, accel: a, hold: params.response_time, brake: params.brake };
-        least_gap(rear, lead_speed, params.lead_brake, gap, horizon) >= params.margin
+        least_gap(rear, lead_speed, params.lead_brake, gap, horizon) >= kept(gap, params)
     };
     if accel <= floor || keeps(accel) {
         return accel.max(floor);
@@ -184,7 +191,7 @@ pub fn safe_accel(
 }
 
 /// The braking (m/s^2, more than `firm`, at most the emergency braking) that keeps a car
-/// at `speed` `margin` short of a car `gap` m ahead at `lead_speed` holding its braking
+/// at `speed` `kept` short of a car `gap` m ahead at `lead_speed` holding its braking
 /// `lead_brake` (>= 0) over the next `horizon` s, if braking at `firm` would not.
 pub fn emergency_brake(
     speed: f64,
@@ -194,7 +201,7 @@ pub fn emergency_brake(
 ) -> Option<f64> {
     let short = |brake: f64| {
         let rear = Braking { speed, accel: -brake, hold: 0.0, brake };
-        least_gap(rear, lead_speed, lead_brake, gap, horizon) < params.margin
+        least_gap(rear, lead_speed, lead_brake, gap, horizon) < kept(gap, params)
     };
     if !short(firm) {
         return None;
@@ -377,6 +384,17 @@ mod tests {
         assert_eq!(emergency_brake(25.0, 4.0, (25.0, 0.0, 20.0, f64::INFINITY), &p), None);
         // 5 m behind a wreck at 25 m/s: nothing stops in time; full braking.
         assert_eq!(emergency_brake(25.0, 4.0, (0.0, 0.0, 5.0, f64::INFINITY), &p), Some(8.0));
+    }
+
+    #[test]
+    fn a_car_already_within_the_margin_that_pulls_away_asks_nothing() {
+        // Paper-fit's conservative EC merging behind AC (Scenario A): at 6 m/s with AC
+        // beside it, 0.3 m ahead bumper to bumper at 18 m/s. The gap only opens.
+        let p = SafetyParams::default();
+        assert_eq!(safe_accel(6.0, 0.25, -4.0, (18.0, 0.3, f64::INFINITY), &p), 0.25);
+        assert_eq!(emergency_brake(6.0, 4.0, (18.0, 0.0, 0.3, f64::INFINITY), &p), None);
+        // As slow as the AV, braking at 6, the same car closes the gap: brake.
+        assert!(emergency_brake(6.0, 4.0, (6.0, 6.0, 0.3, f64::INFINITY), &p).is_some());
     }
 
     #[test]

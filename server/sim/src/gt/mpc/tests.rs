@@ -20,7 +20,7 @@ fn problem<'a>(
     let (vehicle, driver) = models;
     MpcProblem {
         state,
-        accel: 0.0,
+        accel: AccelRamp::step(0.0),
         previous_preview,
         target,
         curvature: 0.0,
@@ -105,7 +105,7 @@ fn a_reused_solver_returns_the_same_bits_as_a_fresh_one() {
     let params = MpcParams::default();
     let make = |d: f64, target: f64| {
         let state = VehicleState { heading: 0.01, ..VehicleState::cruising(10.0, d, 22.0) };
-        MpcProblem { accel: 1.0, ..problem(state, d, target, (&vehicle, &driver), &field, &[]) }
+        MpcProblem { accel: AccelRamp::step(1.0), ..problem(state, d, target, (&vehicle, &driver), &field, &[]) }
     };
     let (x, y) = (make(-4.0, 0.0), make(-1.0, -8.0));
     let fresh = Mpc::new().solve(&x, &params).unwrap();

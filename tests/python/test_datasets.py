@@ -124,11 +124,17 @@ def test_the_labels_are_the_avs_own_command_and_replay_as_it_drove(minari_root):
     assert dataset.spec.env_spec.kwargs["overrides"] == {"vehicle.ec_0.driver.style": "aggressive"}
     assert dataset.spec.env_spec.kwargs["expert"] == "nash"
     # Played back by a learner, the AV's commands (rounded to float32) drive the same
-    # episode to within centimetres: they are what it applied.
+    # episode to within centimetres. Not to the bit: the AV ramps its acceleration over
+    # the period to each command at the jerk bound (docs/design.md, "Jerk"), a learner's
+    # command is a step, so the replay drifts by millimetres and the AV planning in its
+    # place may pick the next acceleration of its grid (0.25 m/s^2, 0.25/6 here) near a tie.
     episode, experts, observations, _, _ = replay(dataset)
     assert len(experts) == len(episode.actions)
-    np.testing.assert_allclose(np.array(experts, dtype=np.float32), episode.actions, atol=1e-3)
     np.testing.assert_allclose(observations, episode.observations, atol=1e-2)
+    labels = np.array(experts, dtype=np.float32)
+    np.testing.assert_allclose(labels, episode.actions, atol=0.25 / 6 + 1e-3)
+    differ = np.abs(labels - episode.actions).max(axis=1) > 1e-3
+    assert differ.sum() <= 0.05 * len(differ), f"{differ.sum()} of {len(differ)} labels differ"
 
 
 def test_expert_means_the_learners_own_style(minari_root):

@@ -2,7 +2,9 @@
 //! both adjacent cars `gt` followers): one Nash decision, one Stackelberg decision, one
 //! MPC solve, and the whole per-tick AV step (read the world, decide, plan). Criterion
 //! gives the means; a second pass times single calls and prints p50 / p99 / max, the
-//! figures docs/performance.md records (target: decision + MPC p99 <= 1 ms).
+//! figures docs/performance.md records. Then the AV step in traffic: every gt car of
+//! highway-gt.toml, planned from the world as it is every second from 5 to 24 s (issue
+//! 25's target: p50 about 20 us on one core).
 //!
 //! Run: `cargo bench -p arena-paper --bench gt`
 
@@ -13,7 +15,7 @@ use arena_paper::{PaperOptions, PaperScenario, world};
 use arena_sim::Driver;
 use arena_sim::Style;
 use arena_sim::{Game, GtDriver, GtParams, Mpc, expert_decision, plan, plan_motion};
-use arena_sim::{Scene, VehicleId};
+use arena_sim::{Scene, VehicleId, builtin_scenario};
 use criterion::Criterion;
 
 /// Scenario B's initial scene, EC's id and its driver.
@@ -92,9 +94,54 @@ fn tails() {
     });
 }
 
+/// highway-gt.toml's world of `seed` at every whole second from 5 to 24 s: its scene and
+/// each gt car's id and driver.
+fn highway_gt_scenes(seed: u64) -> Vec<(Scene, Vec<(VehicleId, GtDriver)>)> {
+    let scenario = builtin_scenario("highway-gt").expect("highway-gt is built in").expect("it validates");
+    let mut world = scenario.build(seed);
+    world.set_decision_threads(1);
+    let ticks_per_second = (1.0 / world.params().physics_dt).round() as usize;
+    let mut scenes = Vec::new();
+    for second in 1..=24 {
+        for _ in 0..ticks_per_second {
+            world.tick();
+        }
+        if second < 5 {
+            continue;
+        }
+        let cars = (0..world.vehicles().len() as u32)
+            .map(VehicleId)
+            .filter_map(|id| match &world.vehicle(id).driver {
+                Driver::Gt(gt) => Some((id, GtDriver::clone(gt))),
+                _ => None,
+            })
+            .collect();
+        scenes.push((world.scene().clone(), cars));
+    }
+    scenes
+}
+
+fn traffic() {
+    println!(
+        "
+the AV step in traffic (highway-gt.toml, seed 0, every gt car at 5..24 s):"
+    );
+    let scenes = highway_gt_scenes(0);
+    let cars: Vec<(&Scene, VehicleId, &GtDriver)> =
+        scenes.iter().flat_map(|(scene, cars)| cars.iter().map(move |(id, gt)| (scene, *id, gt))).collect();
+    let mut mpc = Mpc::new();
+    let mut next = 0;
+    percentiles("av_step in traffic", 3000, || {
+        let (scene, id, gt) = cars[next % cars.len()];
+        next += 1;
+        black_box(plan(scene, id, gt, Some(&mut mpc)));
+    });
+}
+
 fn main() {
     let mut criterion = Criterion::default().configure_from_args();
     bench(&mut criterion);
     criterion.final_summary();
     tails();
+    traffic();
 }

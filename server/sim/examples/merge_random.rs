@@ -22,21 +22,12 @@ use arena_sim::Game;
 use arena_sim::GtParams;
 use arena_sim::Role;
 use arena_sim::Style;
-use arena_sim::{Driver, JerkSummary, Status, VehicleId, World, commanded_jerk, longitudinal_jerk};
+use arena_sim::{Driver, Ending, JerkSummary, Status, commanded_jerk, longitudinal_jerk};
 use arena_sim::{DriverSpec, Scenario, builtin_scenario};
 
-/// How an episode ended, in `arena eval`'s words.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum EndReason {
-    Collision,
-    OffRoad,
-    LaneEnd,
-    RoadEnd,
-    TimeLimit,
-}
-
 struct Episode {
-    end: EndReason,
+    /// How ec_0 stopped driving; `None`: it drove until the time limit.
+    end: Option<Ending>,
     success: bool,
     /// When ec_0's first lane change began (s), if one did.
     change_at: Option<f64>,
@@ -77,7 +68,7 @@ fn episode(scenario: &Scenario, seed: u64, style: Style, game: Game, params: GtP
     let ticks = (drawn.step_dt / world.params().physics_dt).round() as u64;
     let start_lane = world.vehicle(ec).target_lane;
     let mut e = Episode {
-        end: EndReason::TimeLimit,
+        end: None,
         success: false,
         change_at: None,
         shortest: None,
@@ -148,44 +139,14 @@ fn episode(scenario: &Scenario, seed: u64, style: Style, game: Game, params: GtP
                 ac.map_or(f64::NAN, |ac| ac.state.lane_speed()),
             );
         }
-        if let Some(ended) = ended(&world, ec) {
-            e.end = ended;
+        if let Some(ending) = world.ending(ec) {
+            e.end = Some(ending);
             break;
         }
     }
-    e.success = succeeded(&world, &drawn, ec, e.end);
+    // As the env's `episode_success`: ended on the road where the goal asks.
+    e.success = matches!(e.end, None | Some(Ending::RoadEnd)) && drawn.goal.reached(&world, ec);
     e
-}
-
-/// server/src/env/episode.rs's `ended`.
-fn ended(world: &World, id: VehicleId) -> Option<EndReason> {
-    let vehicle = world.vehicle(id);
-    match vehicle.status {
-        Status::Driving => None,
-        Status::Crashed => Some(EndReason::Collision),
-        Status::Exited => Some(EndReason::RoadEnd),
-        Status::OffRoad => {
-            let road = world.road();
-            let lane = road.nearest_lane(vehicle.state.d);
-            let within = (vehicle.state.d - road.lane_center(lane)).abs() <= road.lane_width() / 2.0;
-            Some(if within && vehicle.state.s > road.lane_end(lane) { EndReason::LaneEnd } else { EndReason::OffRoad })
-        }
-    }
-}
-
-/// server/src/env/episode.rs's `succeeded`.
-fn succeeded(world: &World, scenario: &Scenario, id: VehicleId, end: EndReason) -> bool {
-    if !matches!(end, EndReason::TimeLimit | EndReason::RoadEnd) {
-        return false;
-    }
-    let vehicle = world.vehicle(id);
-    let goal = &scenario.goal;
-    let in_lane = goal.lanes.is_empty() || goal.lanes.contains(&world.current_lane(id));
-    let ahead = goal
-        .ahead_of
-        .iter()
-        .all(|name| world.find(name).is_none_or(|other| vehicle.state.s > world.vehicle(other).state.s));
-    in_lane && ahead
 }
 
 fn main() {
@@ -230,13 +191,13 @@ fn main() {
                 let e = episode(&scenario, seed, style, game, params, false);
                 match (e.success, e.end) {
                     (true, _) => success += 1,
-                    (false, EndReason::LaneEnd) => lane_end += 1,
-                    (false, EndReason::Collision) => collision += 1,
-                    (false, EndReason::OffRoad) => off_road += 1,
+                    (false, Some(Ending::LaneEnd)) => lane_end += 1,
+                    (false, Some(Ending::Collision)) => collision += 1,
+                    (false, Some(Ending::OffRoad)) => off_road += 1,
                     (false, _) => other += 1,
                 }
                 if !e.success {
-                    failing.push(format!("{seed}:{:?}", e.end));
+                    failing.push(format!("{seed}:{}", e.end.map_or("TimeLimit".to_string(), |end| format!("{end:?}"))));
                 }
                 if let Some(t) = e.shortest {
                     shortened += 1;

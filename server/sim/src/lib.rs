@@ -39,6 +39,6 @@ pub use scenario::{
 pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 pub use traffic::{IdmParams, speed_control};
 pub use world::{
-    AgentCommand, AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver, LEARNER_SPEED_FACTOR, LaneEntry, Vehicle,
-    World, WorldParams,
+    AgentCommand, AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver, Ending, LEARNER_SPEED_FACTOR, LaneEntry,
+    Vehicle, World, WorldParams,
 };

@@ -23,6 +23,19 @@ pub use collision::{AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, LaneEntry};
 
 pub use crate::scene::{Status, VehicleId};
 
+/// How a vehicle stopped driving (`World::ending`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Ending {
+    /// It collided.
+    Collision,
+    /// It drove past the end of its lane.
+    LaneEnd,
+    /// It left the road over an edge.
+    OffRoad,
+    /// It reached the end of the road.
+    RoadEnd,
+}
+
 /// Timing of the simulation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct WorldParams {
@@ -246,6 +259,24 @@ impl World {
     /// Simulated time (s).
     pub fn time(&self) -> f64 {
         self.time
+    }
+
+    /// Why vehicle `id` no longer drives, if it does not: a collision, driving past the
+    /// end of its lane, over the road's edge, or off the road's end. The env reports it
+    /// (`end_reason`), and the benchmarks without a server read it here.
+    pub fn ending(&self, id: VehicleId) -> Option<Ending> {
+        let vehicle = self.vehicle(id);
+        match vehicle.status {
+            Status::Driving => None,
+            Status::Crashed => Some(Ending::Collision),
+            Status::Exited => Some(Ending::RoadEnd),
+            Status::OffRoad => {
+                let road = self.road();
+                let lane = road.nearest_lane(vehicle.state.d);
+                let within = (vehicle.state.d - road.lane_center(lane)).abs() <= road.lane_width() / 2.0;
+                Some(if within && vehicle.state.s > road.lane_end(lane) { Ending::LaneEnd } else { Ending::OffRoad })
+            }
+        }
     }
 
     /// Collisions that happened since the world began, in order.

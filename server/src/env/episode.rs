@@ -10,25 +10,19 @@ use arena_protocol::EndReason;
 use arena_sim::CostComponents;
 use arena_sim::Goal;
 use arena_sim::LaneId;
-use arena_sim::{Status, VehicleId, World};
+use arena_sim::{Ending, Status, VehicleId, World};
 
 use super::simulate::StepCost;
 
-/// Why vehicle `id`'s episode ended, if it did: a collision, driving past the end of its
-/// lane, over the road's edge, or reaching the end of the road.
+/// Why vehicle `id`'s episode ended, if it did (`World::ending` in the protocol's words;
+/// the time limit is the env's).
 pub fn ended(world: &World, id: VehicleId) -> Option<EndReason> {
-    let vehicle = world.vehicle(id);
-    match vehicle.status {
-        Status::Driving => None,
-        Status::Crashed => Some(EndReason::Collision),
-        Status::Exited => Some(EndReason::RoadEnd),
-        Status::OffRoad => {
-            let road = world.road();
-            let lane = road.nearest_lane(vehicle.state.d);
-            let within = (vehicle.state.d - road.lane_center(lane)).abs() <= road.lane_width() / 2.0;
-            Some(if within && vehicle.state.s > road.lane_end(lane) { EndReason::LaneEnd } else { EndReason::OffRoad })
-        }
-    }
+    world.ending(id).map(|ending| match ending {
+        Ending::Collision => EndReason::Collision,
+        Ending::LaneEnd => EndReason::LaneEnd,
+        Ending::OffRoad => EndReason::OffRoad,
+        Ending::RoadEnd => EndReason::RoadEnd,
+    })
 }
 
 /// An episode's figures, as its last info reports them; all zero before (`done` false).
@@ -175,18 +169,9 @@ fn percentile(values: &mut [f64], q: f64) -> f64 {
 }
 
 /// Whether the episode reached the scenario's goal: it ended on the road (time limit or
-/// the road's end), in a goal lane, ahead of every car it had to pass.
+/// the road's end) where the goal asks (`Goal::reached`).
 fn succeeded(world: &World, id: VehicleId, goal: &Goal, end: EndReason) -> bool {
-    if !matches!(end, EndReason::TimeLimit | EndReason::RoadEnd) {
-        return false;
-    }
-    let vehicle = world.vehicle(id);
-    let in_lane = goal.lanes.is_empty() || goal.lanes.contains(&world.current_lane(id));
-    let ahead = goal
-        .ahead_of
-        .iter()
-        .all(|name| world.find(name).is_none_or(|other| vehicle.state.s > world.vehicle(other).state.s));
-    in_lane && ahead
+    matches!(end, EndReason::TimeLimit | EndReason::RoadEnd) && goal.reached(world, id)
 }
 
 /// The smallest bumper-to-bumper gap (m) and time to collision (s) to the cars that

@@ -4,7 +4,7 @@ use crate::dynamics::Style;
 use crate::road::LaneChange;
 use crate::road::{LaneId, Pose, Road, Section};
 use crate::scene::Role;
-use crate::world::{AgentCommand, Driver, Status, Vehicle, VehicleId, World, WorldParams};
+use crate::world::{AgentCommand, Driver, Ending, Status, Vehicle, VehicleId, World, WorldParams};
 
 /// What the AV would decide in vehicle `id`'s place, with the vehicle's own constants.
 fn expert(world: &mut World, id: VehicleId, game: Game) -> Decision {
@@ -418,30 +418,21 @@ fn the_fast_search_decides_exactly_as_the_full_tables_do() {
 
 // Merging that completes (issue 23; docs/design.md, "Merging that completes").
 
-/// How a merge-random episode ended, as server/src/env/episode.rs says it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum EndReason {
-    Collision,
-    OffRoad,
-    LaneEnd,
-    RoadEnd,
-    TimeLimit,
-}
-
 /// One episode of scenarios/merge-random.toml as `arena eval --policy gt:<style>:<game>`
 /// runs it (the env's reset and `drive_learners`): the seed seeds the seeds, whose first
 /// draw seeds the `[vary]` draws and the world; the learner becomes a `gt` leader of
 /// `style` playing `game` with constants `params` (`arena eval`'s: the defaults); 0.1 s steps until it stops driving
-/// or `max_cycles`. Returns how it ended, whether that is a success (ended on the road in
-/// a `[goal]` lane, ahead of the `ahead_of` cars), and whether a lane change was shortened.
-fn merge_random_episode(seed: u64, style: Style, game: Game, params: GtParams) -> (EndReason, bool, bool) {
+/// or `max_cycles`. Returns how it ended (`None`: at the time limit), whether that is a
+/// success (ended on the road where the `[goal]` asks), and whether a lane change was
+/// shortened.
+fn merge_random_episode(seed: u64, style: Style, game: Game, params: GtParams) -> (Option<Ending>, bool, bool) {
     let e = merge_random_run(seed, style, game, params);
     (e.end, e.success, e.shortened)
 }
 
 /// What one merge-random episode of `merge_random_run` recorded.
 struct MergeRun {
-    end: EndReason,
+    end: Option<Ending>,
     success: bool,
     shortened: bool,
     /// ec_0's commanded acceleration of every control period it drove, after the 0 it
@@ -468,7 +459,7 @@ fn merge_random_run(seed: u64, style: Style, game: Game, params: GtParams) -> Me
     world.set_decision_threads(1);
     let ec = world.find("ec_0").unwrap();
     let mut shortened = false;
-    let mut end = EndReason::TimeLimit;
+    let mut end = None;
     let mut commands = vec![world.vehicle(ec).command.accel];
     let per_control = world.params().substeps_per_control();
     let mut ticks = 0u64;
@@ -484,28 +475,12 @@ fn merge_random_run(seed: u64, style: Style, game: Game, params: GtParams) -> Me
                 shortened |= gt.decision.duration.is_some();
             }
         }
-        let v = world.vehicle(ec);
-        let road = world.road();
-        let ended = match v.status {
-            Status::Driving => None,
-            Status::Crashed => Some(EndReason::Collision),
-            Status::Exited => Some(EndReason::RoadEnd),
-            Status::OffRoad => {
-                let lane = road.nearest_lane(v.state.d);
-                let within = (v.state.d - road.lane_center(lane)).abs() <= road.lane_width() / 2.0;
-                Some(if within && v.state.s > road.lane_end(lane) { EndReason::LaneEnd } else { EndReason::OffRoad })
-            }
-        };
-        if let Some(ended) = ended {
-            end = ended;
+        if let Some(ending) = world.ending(ec) {
+            end = Some(ending);
             break;
         }
     }
-    let v = world.vehicle(ec);
-    let goal = &episode.goal;
-    let ahead = goal.ahead_of.iter().all(|n| world.find(n).is_none_or(|o| v.state.s > world.vehicle(o).state.s));
-    let in_lane = goal.lanes.is_empty() || goal.lanes.contains(&world.current_lane(ec));
-    let success = matches!(end, EndReason::TimeLimit | EndReason::RoadEnd) && in_lane && ahead;
+    let success = matches!(end, None | Some(Ending::RoadEnd)) && episode.goal.reached(&world, ec);
     let Driver::Gt(gt) = &world.vehicle(ec).driver else { unreachable!("ec_0 is driven by gt") };
     let exempt = gt.diagnostics.abort_jumps + gt.diagnostics.emergency_jumps;
     MergeRun { end, success, shortened, commands, exempt }
@@ -525,7 +500,12 @@ fn merges_complete(style: Style) -> usize {
     for game in Game::ALL {
         for seed in MERGE_SEEDS {
             let (end, success, short) = merge_random_episode(seed, style, game, GtParams::default());
-            assert!(success && end != EndReason::LaneEnd, "gt:{}:{} seed {seed}: {end:?}", style.name(), game.name());
+            assert!(
+                success && end != Some(Ending::LaneEnd),
+                "gt:{}:{} seed {seed}: {end:?}",
+                style.name(),
+                game.name()
+            );
             shortened += usize::from(short);
         }
     }
@@ -601,7 +581,7 @@ fn without_the_merge_timing_seed_0_runs_past_the_end_again() {
     let mut off = GtParams::default();
     off.decision.merge.enabled = false;
     off.decision.jerk.enabled = false;
-    assert_eq!(merge_random_episode(0, Style::Normal, Game::Nash, off).0, EndReason::LaneEnd);
+    assert_eq!(merge_random_episode(0, Style::Normal, Game::Nash, off).0, Some(Ending::LaneEnd));
 }
 
 #[test]

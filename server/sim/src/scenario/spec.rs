@@ -8,6 +8,7 @@ use crate::dynamics::Style;
 use crate::gt::{Game, GtParams};
 use crate::road::LaneId;
 use crate::scene::Role;
+use crate::world::{VehicleId, World};
 
 /// How a learner drives its vehicle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
@@ -120,4 +121,16 @@ pub struct Goal {
     pub lanes: Vec<LaneId>,
     /// Vehicles the learner must end ahead of (greater s).
     pub ahead_of: Vec<String>,
+}
+
+impl Goal {
+    /// Whether vehicle `id` of `world` is where the goal asks, now: in one of `lanes` (if
+    /// any) and ahead of every vehicle of `ahead_of`. An episode succeeds if it ends on
+    /// the road (the time limit or the road's end) with this true.
+    pub fn reached(&self, world: &World, id: VehicleId) -> bool {
+        let s = world.vehicle(id).state.s;
+        let in_lane = self.lanes.is_empty() || self.lanes.contains(&world.current_lane(id));
+        in_lane
+            && self.ahead_of.iter().all(|name| world.find(name).is_none_or(|other| s > world.vehicle(other).state.s))
+    }
 }

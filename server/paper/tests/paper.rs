@@ -173,16 +173,7 @@ fn the_merge_timing_is_inactive_in_every_paper_run() {
     // trace is the same bits with it switched off.
     let mut off = PaperOptions::default();
     off.params.decision.merge.enabled = false;
-    for scenario in PaperScenario::ALL {
-        for style in Style::ALL {
-            for game in Game::ALL {
-                let (record, trace) = paper::run(scenario, style, game, &off).unwrap();
-                let (expected, expected_trace) = run(scenario, style, game);
-                assert_eq!(&record, expected, "{scenario:?} {style:?} {game:?}");
-                assert_eq!(&trace, expected_trace, "{scenario:?} {style:?} {game:?}");
-            }
-        }
-    }
+    assert_every_run_as(&off, |scenario, style, game| run(scenario, style, game).clone());
 }
 
 #[test]
@@ -193,28 +184,26 @@ fn the_safety_layer_is_inactive_in_every_paper_run() {
     // adjacent cars: every record and trace is the same bits with it switched off.
     let mut off = PaperOptions::default();
     off.params.safety.enabled = false;
-    for scenario in PaperScenario::ALL {
-        for style in Style::ALL {
-            for game in Game::ALL {
-                let (record, trace) = paper::run(scenario, style, game, &off).unwrap();
-                let (expected, expected_trace) = run(scenario, style, game);
-                assert_eq!(&record, expected, "{scenario:?} {style:?} {game:?}");
-                assert_eq!(&trace, expected_trace, "{scenario:?} {style:?} {game:?}");
-            }
-        }
-    }
+    assert_every_run_as(&off, |scenario, style, game| run(scenario, style, game).clone());
     // Nor with the paper-fit preset, whose conservative EC of Scenario A merges closest
     // behind AC, beside it at first (the layer once braked it at -8 there for a gap that
     // only opened: docs/design.md, "Safety layer").
     let (_, fit) = paper::calibrate::options_of("paper-fit").expect("the shipped preset loads");
     let mut fit_off = fit.clone();
     fit_off.params.safety.enabled = false;
+    assert_every_run_as(&fit_off, |scenario, style, game| paper::run(scenario, style, game, &fit).unwrap());
+}
+
+/// Asserts that each of the twelve paper runs with `options` gives the same record and
+/// trace, bit for bit, as `expected` gives for it.
+fn assert_every_run_as(options: &PaperOptions, expected: impl Fn(PaperScenario, Style, Game) -> (Record, Trace)) {
     for scenario in PaperScenario::ALL {
         for style in Style::ALL {
             for game in Game::ALL {
-                let on = paper::run(scenario, style, game, &fit).unwrap();
-                let off = paper::run(scenario, style, game, &fit_off).unwrap();
-                assert_eq!(on, off, "paper-fit {scenario:?} {style:?} {game:?}");
+                let (record, trace) = paper::run(scenario, style, game, options).unwrap();
+                let (expected, expected_trace) = expected(scenario, style, game);
+                assert_eq!(record, expected, "{scenario:?} {style:?} {game:?}");
+                assert_eq!(trace, expected_trace, "{scenario:?} {style:?} {game:?}");
             }
         }
     }

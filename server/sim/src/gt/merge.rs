@@ -92,12 +92,7 @@ fn blend(u: f64) -> f64 {
 /// The u in [0, 1] at which `blend(u)` = `part` (clamped): how far in time along a
 /// quintic lane change its offset has come `part` of the way (also `safety`'s).
 pub(super) fn phase(part: f64) -> f64 {
-    let (mut low, mut high) = (0.0, 1.0);
-    for _ in 0..40 {
-        let mid = 0.5 * (low + high);
-        if blend(mid) < part { low = mid } else { high = mid }
-    }
-    high
+    super::bisect(0.0, 1.0, |u| blend(u) < part).1
 }
 
 /// How a change under way is timed, from the driver's memory.
@@ -191,12 +186,7 @@ impl Crossing {
             return None;
         }
         // The distance grows with T: the longest T whose crossing still fits.
-        let (mut low, mut high) = (shortest, longest);
-        for _ in 0..40 {
-            let mid = 0.5 * (low + high);
-            if fits(mid) { low = mid } else { high = mid }
-        }
-        Some(low)
+        Some(super::bisect(shortest, longest, fits).0)
     }
 }
 

@@ -56,5 +56,16 @@ pub use prediction::PredictionParams;
 pub use safety::{SafetyOverride, SafetyParams};
 pub use styles::{CostWeights, StyleProfile};
 
+/// The bracket [low, high] around where `holds` turns false, from `low` (where it holds)
+/// and `high` (where it does not), after 40 halvings: the searches of `merge` and
+/// `safety` for the last value that still fits.
+fn bisect(mut low: f64, mut high: f64, holds: impl Fn(f64) -> bool) -> (f64, f64) {
+    for _ in 0..40 {
+        let mid = 0.5 * (low + high);
+        if holds(mid) { low = mid } else { high = mid }
+    }
+    (low, high)
+}
+
 #[cfg(test)]
 mod tests;

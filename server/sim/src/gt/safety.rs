@@ -182,12 +182,7 @@ pub fn safe_accel(
         return floor;
     }
     // Every instant's gap shrinks as the acceleration grows: bisect.
-    let (mut low, mut high) = (floor, accel);
-    for _ in 0..40 {
-        let mid = 0.5 * (low + high);
-        if keeps(mid) { low = mid } else { high = mid }
-    }
-    low
+    super::bisect(floor, accel, keeps).0
 }
 
 /// The braking (m/s^2, more than `firm`, at most the emergency braking) that keeps a car
@@ -209,12 +204,7 @@ pub fn emergency_brake(
     if short(params.emergency_brake) {
         return Some(params.emergency_brake);
     }
-    let (mut low, mut high) = (firm, params.emergency_brake);
-    for _ in 0..40 {
-        let mid = 0.5 * (low + high);
-        if short(mid) { low = mid } else { high = mid }
-    }
-    Some(high)
+    Some(super::bisect(firm, params.emergency_brake, short).1)
 }
 
 /// The lanes car `me` takes up: the one it is in, the one its lane change goes to, and any

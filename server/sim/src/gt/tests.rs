@@ -101,12 +101,17 @@ fn the_leader_never_pays_more_than_at_a_nash_equilibrium() {
 }
 
 fn merge_road(lane_end: f64) -> Road {
+    straight_road(3, &[(LaneId(2), lane_end)])
+}
+
+/// A straight 1 km road of `lanes` 4 m lanes at 25 m/s, with these lane ends.
+fn straight_road(lanes: usize, lane_ends: &[(LaneId, f64)]) -> Road {
     Road::new(
         Pose { x: 0.0, y: 0.0, heading: 0.0 },
         vec![Section::Straight { length: 1000.0 }],
         4.0,
-        vec![25.0, 25.0, 25.0],
-        &[(LaneId(2), lane_end)],
+        vec![25.0; lanes],
+        lane_ends,
     )
 }
 
@@ -534,13 +539,7 @@ fn a_change_under_way_that_can_no_longer_cross_in_time_is_aborted_into_braking()
     // 4 s away (it fell behind): no acceleration crosses 1 m before the end at 2 m/s or
     // more, even at the 3 s pace; braking at 4 m/s^2 it stops 6 m short. It gives the
     // change up: back to its lane, braking.
-    let road = Road::new(
-        Pose { x: 0.0, y: 0.0, heading: 0.0 },
-        vec![Section::Straight { length: 1000.0 }],
-        4.0,
-        vec![25.0, 25.0],
-        &[(LaneId(1), 112.0)],
-    );
+    let road = straight_road(2, &[(LaneId(1), 112.0)]);
     let mut world = world_with(road, &[("ec", 1, 100.0, 7.0, Style::Normal, gt(Game::Nash, Role::Leader))]);
     world.change_lane(VehicleId(0), LaneId(0));
     let Driver::Gt(mut driver) = world.vehicle(VehicleId(0)).driver.clone() else { unreachable!() };
@@ -667,13 +666,7 @@ fn during_its_lane_change_the_av_keeps_its_distance_in_both_lanes_until_it_has_l
 fn the_av_brakes_harder_than_the_games_allow_only_when_a_collision_is_otherwise_certain() {
     // On a one-lane road (no way out sideways), 20 m behind a car as fast that brakes at
     // 6 m/s^2: the games' -4 would hit it.
-    let road = Road::new(
-        Pose { x: 0.0, y: 0.0, heading: 0.0 },
-        vec![Section::Straight { length: 1000.0 }],
-        4.0,
-        vec![25.0],
-        &[],
-    );
+    let road = straight_road(1, &[]);
     let cars = [("ec", 0, 100.0, 25.0, Style::Normal, gt(Game::Stackelberg, Role::Leader))];
     let mut world = world_with(road.clone(), &cars);
     let mut lead = Vehicle::new("lead", &road, LaneId(0), 125.0, 25.0, Style::Normal, Driver::Idm);

@@ -131,6 +131,17 @@ the AV step in traffic (highway-gt.toml, seed 0, every gt car at 5..24 s):"
         scenes.iter().flat_map(|(scene, cars)| cars.iter().map(move |(id, gt)| (scene, *id, gt))).collect();
     let mut mpc = Mpc::new();
     let mut next = 0;
+    percentiles("decision in traffic", 3000, || {
+        let (scene, id, gt) = cars[next % cars.len()];
+        next += 1;
+        black_box(expert_decision(scene, id, gt.game, &gt.params));
+    });
+    percentiles("mpc in traffic", 3000, || {
+        let (scene, id, gt) = cars[next % cars.len()];
+        next += 1;
+        let lane = scene.car(id).target_lane;
+        let _ = black_box(plan_motion(scene, id, gt, gt.decision.accel, lane, Some(&mut mpc)));
+    });
     percentiles("av_step in traffic", 3000, || {
         let (scene, id, gt) = cars[next % cars.len()];
         next += 1;

@@ -153,6 +153,9 @@ pub struct PayoffTable {
     pub ac: Vec<f64>,
     /// AC's best reply per row, when the builder found it; empty: found from `ac`.
     pub replies: Vec<usize>,
+    /// Rows the builder proved cannot be EC's choice nor any column's least cost for EC
+    /// (`Situation::side_game_with`): none of their cells is computed or read. Empty: none.
+    pub pruned: Vec<bool>,
 }
 
 /// A chosen pair of actions.
@@ -177,6 +180,15 @@ impl PayoffTable {
         self.ac[row * self.cols + col]
     }
 
+    fn in_play(&self, row: usize) -> bool {
+        !self.pruned.get(row).copied().unwrap_or(false)
+    }
+
+    /// The rows in play: all but the pruned ones, in order.
+    fn rows_in_play(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.rows).filter(|&row| self.in_play(row))
+    }
+
     /// AC's best reply to `row` (the first of equal ones).
     pub fn best_reply(&self, row: usize) -> usize {
         match self.replies.get(row) {
@@ -191,10 +203,10 @@ impl PayoffTable {
     pub fn nash(&self) -> Option<Profile> {
         let mut column_min: Vec<Option<f64>> = vec![None; self.cols];
         let mut best: Option<(usize, usize)> = None;
-        for row in 0..self.rows {
+        for row in self.rows_in_play() {
             let col = self.best_reply(row); // eq. (15b)
             let floor = *column_min[col]
-                .get_or_insert_with(|| (0..self.rows).map(|r| self.ec(r, col)).fold(f64::INFINITY, f64::min));
+                .get_or_insert_with(|| self.rows_in_play().map(|r| self.ec(r, col)).fold(f64::INFINITY, f64::min));
             let is_equilibrium = self.ec(row, col) <= floor; // eq. (15a)
             if is_equilibrium && best.is_none_or(|(r, c)| self.ec(row, col) < self.ec(r, c)) {
                 best = Some((row, col));
@@ -207,7 +219,7 @@ impl PayoffTable {
     /// an inexact profile: what EC does when there is no equilibrium to play.
     fn best_against_replies(&self, allowed: impl Iterator<Item = usize>) -> Profile {
         let mut best = (f64::INFINITY, 0, 0);
-        for row in allowed {
+        for row in allowed.filter(|&row| self.in_play(row)) {
             let col = self.best_reply(row);
             if self.ec(row, col) < best.0 {
                 best = (self.ec(row, col), row, col);
@@ -221,7 +233,7 @@ impl PayoffTable {
     /// (1 + tolerance) of the best). `col` is the reply EC guards against.
     pub fn stackelberg(&self, tolerance: f64) -> Profile {
         let mut best = (f64::INFINITY, 0, 0);
-        for row in 0..self.rows {
+        for row in self.rows_in_play() {
             let bound = follower_bound(self.ac(row, self.best_reply(row)), tolerance);
             let mut worst = (f64::NEG_INFINITY, 0);
             for col in 0..self.cols {
@@ -671,6 +683,7 @@ impl Situation {
             ec: vec![f64::NAN; rows * cols],
             ac: vec![f64::NAN; rows * cols],
             replies: Vec::with_capacity(rows),
+            pruned: vec![false; rows],
         };
         let cell = Cell { samples: &samples, option: option.as_ref(), params };
         // Lower bounds on AC's cost per column for a lane-change row: the lateral term is
@@ -689,7 +702,16 @@ impl Situation {
         // While EC keeps its lane, its cost does not depend on AC's action nor AC's on
         // EC's: one column per row and one row of AC costs serve all those rows.
         let mut keeping: Option<(Vec<f64>, usize)> = None;
+        // EC's least cost over the lane-keeping rows (each the same in every column), and
+        // whether a lane-change row can be pruned against it (`ec_floor`).
+        let mut keep_best = f64::INFINITY;
+        let prunes = self.prunes(params, needs);
         for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
+            if sigma != 0 && prunes && self.ec_floor(&cell, row, accel, sigma) > keep_best {
+                table.pruned[row] = true;
+                table.replies.push(0); // never read
+                continue;
+            }
             let replies = &mut table.ac[row * cols..(row + 1) * cols];
             let reply = if let (0, Some((alone, reply)), AdjacentLateral::Switched) =
                 (sigma, &keeping, params.game.adjacent_lateral)
@@ -734,13 +756,14 @@ impl Situation {
             if sigma == 0 {
                 let own = self.ec_entry(&cell, row, 0, accel, sigma).weighted_by(&self.ego.weights);
                 table.ec[row * cols..(row + 1) * cols].fill(own);
+                keep_best = keep_best.min(own);
             }
         }
         let mut wanted = vec![matches!(needs, Needs::All); rows * cols];
         match needs {
             Needs::All | Needs::Replies => {}
             Needs::Nash => {
-                let mut columns: Vec<usize> = table.replies.clone();
+                let mut columns: Vec<usize> = table.rows_in_play().map(|row| table.replies[row]).collect();
                 columns.sort_unstable();
                 columns.dedup();
                 for col in columns {
@@ -748,7 +771,7 @@ impl Situation {
                 }
             }
             Needs::Stackelberg(tolerance) => {
-                for row in 0..rows {
+                for row in table.rows_in_play() {
                     let bound = follower_bound(table.ac(row, table.best_reply(row)), tolerance);
                     for col in (0..cols).filter(|&col| table.ac(row, col) <= bound) {
                         wanted[row * cols + col] = true;
@@ -757,7 +780,7 @@ impl Situation {
             }
         }
         for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
-            if sigma == 0 {
+            if sigma == 0 || !table.in_play(row) {
                 continue;
             }
             for col in (0..cols).filter(|&col| wanted[row * cols + col]) {
@@ -898,9 +921,41 @@ impl Situation {
 
     /// EC's cost components for one profile, averaged over the predicted samples.
     fn ec_entry(&self, cell: &Cell, row: usize, col: usize, accel: f64, sigma: i8) -> CostComponents {
+        self.ec_components(cell, row, cell.samples.ac.get(col), accel, sigma)
+    }
+
+    /// Whether lane-change rows may be pruned against the lane-keeping ones (`ec_floor`):
+    /// for an equilibrium search (the reference `Needs::All` computes everything), when
+    /// EC's travel-efficiency term does not depend on AC (no lead-car cap) and its safety
+    /// weight is not negative.
+    fn prunes(&self, params: &DecisionParams, needs: Needs) -> bool {
+        let search = matches!(needs, Needs::Nash | Needs::Stackelberg(_));
+        search && params.costs.lead_range <= 0.0 && self.ego.weights.safety >= 0.0
+    }
+
+    /// A lower bound on EC's weighted cost in lane-change row `row` against any AC action:
+    /// the cost with no AC, which only drops the lateral term (never negative) and, with
+    /// the lead-car cap off, changes no other term. Rounding is monotonic, so it is a
+    /// bound in floating point too. A row whose bound exceeds the cost of some lane-keeping
+    /// row, which is the same in every column, is neither EC's Stackelberg choice (eq.
+    /// 17a) nor a Nash equilibrium (eq. 15a), and lowers no column's least cost: it is
+    /// pruned without computing its cells.
+    fn ec_floor(&self, cell: &Cell, row: usize, accel: f64, sigma: i8) -> f64 {
+        self.ec_components(cell, row, None, accel, sigma).weighted_by(&self.ego.weights)
+    }
+
+    /// EC's cost components in row `row` against AC's predicted path `ac_path` (none: no
+    /// AC), averaged over the predicted samples.
+    fn ec_components(
+        &self,
+        cell: &Cell,
+        row: usize,
+        ac_path: Option<&Vec<Kinematics>>,
+        accel: f64,
+        sigma: i8,
+    ) -> CostComponents {
         let (samples, c) = (cell.samples, &cell.params.costs);
         let ec_path = &samples.ec[row];
-        let ac_path = samples.ac.get(col);
         let target = self.option(sigma).unwrap_or(&self.keep);
         let lateral_accel = prediction::lane_change_accel_over(self.lane_width, samples.durations[row]);
         let ramp = cell.params.jerk.ramp(self.ego.accel, accel);

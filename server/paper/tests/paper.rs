@@ -114,7 +114,8 @@ fn a_run_is_reproducible_to_the_bit_and_serialises_as_documented() {
     assert!(json["t_c"].is_null());
     let ec = &json["diagnostics"]["EC"];
     assert_eq!(ec["plans"].as_u64(), Some(100), "B runs 10 s of 0.1 s periods: {json}");
-    assert!(ec["mean_qp_iterations"].as_f64().is_some_and(|n| n > 0.0) && ec["fallbacks"].as_u64() == Some(0));
+    // EC keeps its lane here: no bound of its QPs is active and each is solved directly.
+    assert!(ec["mean_qp_iterations"].as_f64() == Some(0.0) && ec["fallbacks"].as_u64() == Some(0), "{json}");
     assert_eq!(json["diagnostics"].as_object().map(|d| d.len()), Some(3), "EC, AC1, AC2");
     for key in ["safety", "comfort", "efficiency"] {
         assert!(json["rms_cost"][key].as_f64().is_some_and(|v| v > 0.0), "rms_cost.{key}: {json}");

@@ -169,7 +169,7 @@ pub struct Diagnostics {
     pub fallback: Option<String>,
     /// Plans that fell back since the start.
     pub fallbacks: u32,
-    /// Interior-point iterations of the last QP.
+    /// Interior-point iterations of the last QP (0: no bound was active, solved directly).
     pub iterations: u32,
     /// Decisions the Nash search took without a pure equilibrium (it then keeps the
     /// current lane decision) since the start.

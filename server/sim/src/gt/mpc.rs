@@ -5,7 +5,9 @@
 //! The input is the preview point Y_p; a_x is the game's decision, reached from the last
 //! command at the jerk bound and then held over the horizon (`jerk::AccelRamp`).
 //!
-//! Condensed, the problem is a QP in the N_c input increments, solved by clarabel. The
+//! Condensed, the problem is a QP in the N_c input increments. Where the minimiser of
+//! its objective keeps every bound (lane keeping, most of a lane change), that is its
+//! exact solution, found with one Cholesky solve; otherwise clarabel solves it. The
 //! solver is built once per problem size and then only has P, q and b overwritten
 //! (clarabel's data updates); equilibration is off, so a solve depends on the problem
 //! data alone and a reused solver returns the same bits as a fresh one (tested).
@@ -232,6 +234,31 @@ fn upper_triangle(p: &DMatrix<f64>) -> Vec<f64> {
     (0..n).flat_map(|j| (0..=j).map(move |i| (i, j))).map(|(i, j)| p[(i, j)]).collect()
 }
 
+/// The QP's solution when no bound of eq. (27) is active: the minimiser of 1/2 z'Pz + q'z
+/// (P z = -q, by Cholesky: P is positive definite, R > 0 on its diagonal), if it keeps
+/// every bound; the QP is convex, so it is then the QP's exact solution. `None` when it
+/// breaks a bound (clarabel then solves the QP) or P is not positive definite.
+fn unconstrained(qp: &Qp) -> Option<Vec<f64>> {
+    let z = -qp.p.clone().cholesky()?.solve(&qp.q);
+    let z: Vec<f64> = z.iter().copied().collect();
+    let keeps = constrained_sides(&z).iter().zip(&qp.b).all(|(side, bound)| side <= bound);
+    keeps.then_some(z)
+}
+
+/// A z for the constraint matrix of `constraint_matrix`: the preview point's moves summed
+/// (u(k) - u(k-1)), negated, then the moves themselves, negated.
+fn constrained_sides(z: &[f64]) -> Vec<f64> {
+    let sums: Vec<f64> = z
+        .iter()
+        .scan(0.0, |sum, dz| {
+            *sum += dz;
+            Some(*sum)
+        })
+        .collect();
+    let negated = |v: &[f64]| v.iter().map(|x| -x).collect::<Vec<_>>();
+    [sums.clone(), negated(&sums), z.to_vec(), negated(z)].concat()
+}
+
 /// The constraint matrix [T; -T; I; -I] (T lower-triangular ones: u(k) - u(k-1) summed).
 fn constraint_matrix(n: usize) -> CscMatrix<f64> {
     let (mut colptr, mut rowval, mut nzval) = (vec![0], Vec::new(), Vec::new());
@@ -282,10 +309,13 @@ impl Mpc {
         if !finite {
             return Err(MpcError::NonFinite);
         }
-        let plan = self.solve_qp(&qp)?;
+        let (plan, iterations) = match unconstrained(&qp) {
+            Some(plan) => (plan, 0),
+            None => (self.solve_qp(&qp)?, self.iterations()),
+        };
         let u_prev = problem.previous_preview.clamp(problem.preview_bounds.0, problem.preview_bounds.1);
         let preview = u_prev + plan.first().copied().unwrap_or(0.0); // eq. (29)
-        Ok(MpcSolution { preview, plan: plan.clone(), iterations: self.iterations() })
+        Ok(MpcSolution { preview, plan, iterations })
     }
 
     fn iterations(&self) -> u32 {

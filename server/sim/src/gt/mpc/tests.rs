@@ -61,7 +61,9 @@ fn lane_change(style: Style, speed: f64, from: f64, to: f64, seconds: f64) -> (V
 fn a_lane_change_settles_without_overshoot_for_every_style_and_speed() {
     for style in Style::ALL {
         for speed in [15.0, 20.0, 30.0] {
-            let (offsets, _, peak) = lane_change(style, speed, -4.0, 0.0, 10.0);
+            let (offsets, iterations, peak) = lane_change(style, speed, -4.0, 0.0, 10.0);
+            // The move bound binds at the start: clarabel solved those periods.
+            assert!(iterations > 0 && iterations < 50, "{style:?} at {speed} m/s: {iterations} iterations");
             let overshoot = offsets.iter().fold(f64::NEG_INFINITY, |m, &d| m.max(d));
             let settled = offsets.iter().rposition(|d| d.abs() > 0.2).map_or(0.0, |k| (k + 1) as f64 * 0.1);
             assert!(overshoot < 0.2, "{style:?} at {speed} m/s overshoots by {overshoot:.3} m");
@@ -77,7 +79,45 @@ fn a_lane_change_settles_without_overshoot_for_every_style_and_speed() {
 fn lane_keeping_stays_on_the_centre_between_the_lines() {
     let (offsets, iterations, _) = lane_change(Style::Normal, 25.0, -4.0, -4.0, 5.0);
     assert!(offsets.iter().all(|d| (d + 4.0).abs() < 0.05), "{offsets:?}");
-    assert!(iterations > 0 && iterations < 50);
+    assert_eq!(iterations, 0, "no bound is active: every QP solved directly");
+}
+
+#[test]
+fn the_direct_solution_is_the_one_clarabel_converges_to_and_declines_an_active_bound() {
+    let road = Road::straight(2000.0, 3, 4.0, 30.0);
+    let mut field = straight_field(&road);
+    field.obstacles.push(Obstacle { s: 25.0, d: -1.0, heading: 0.0, speed: 20.0 });
+    let (vehicle, driver) = (VehicleParams::default(), DriverParams::default());
+    let params = MpcParams::default();
+    let state = VehicleState { heading: 0.004, ..VehicleState::cruising(0.0, -4.2, 20.0) };
+    let keeping = build_qp(&problem(state, -4.2, -4.0, (&vehicle, &driver), &field, &[]), &params);
+    let direct = unconstrained(&keeping).expect("lane keeping activates no bound");
+    let interior = Mpc::new().solve_qp(&keeping).unwrap();
+    let moves = direct.iter().fold(0.0f64, |m, z| m.max(z.abs()));
+    assert!(moves > 1e-3, "the obstacle and the offset move the plan: {direct:?}");
+    for (z, x) in direct.iter().zip(&interior) {
+        assert!((z - x).abs() < 1e-5, "direct {direct:?}\nclarabel {interior:?}");
+    }
+    // A lane change wants more than max_step at once: the direct solution breaks the bound.
+    let changing = build_qp(&problem(state, -4.2, 4.0, (&vehicle, &driver), &field, &[]), &params);
+    assert_eq!(unconstrained(&changing), None);
+    let plan = Mpc::new().solve_qp(&changing).unwrap();
+    assert!((plan[0] - params.max_step).abs() < 1e-4, "the first move rides the bound: {plan:?}");
+}
+
+#[test]
+fn the_constrained_sides_are_the_constraint_matrix_times_the_moves() {
+    let z = [0.1, -0.25, 0.05, 0.3];
+    let a = constraint_matrix(z.len());
+    let mut product = vec![0.0; 4 * z.len()];
+    for (j, zj) in z.iter().enumerate() {
+        for k in a.colptr[j]..a.colptr[j + 1] {
+            product[a.rowval[k]] += a.nzval[k] * zj;
+        }
+    }
+    let sides = constrained_sides(&z);
+    assert!(sides.iter().zip(&product).all(|(x, y)| (x - y).abs() < 1e-15), "{sides:?} against {product:?}");
+    assert_eq!(sides[3], 0.1 - 0.25 + 0.05 + 0.3);
 }
 
 #[test]

@@ -92,22 +92,53 @@ impl Line {
             side => (f64::from(side) * (d - self.d)).max(0.0),
         }
     }
+
+    /// The derivative of `distance` in d (0 on the line and off the road beyond an edge).
+    #[inline]
+    pub fn slope(&self, d: f64) -> f64 {
+        let side = match self.road_side {
+            0 => (d - self.d).signum(),
+            side => f64::from(side),
+        };
+        if self.distance(d) > 0.0 { side } else { 0.0 }
+    }
 }
 
 /// Eq. (20): the field of one obstacle at (s, d).
 #[inline]
 pub(crate) fn obstacle_field(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> f64 {
+    obstacle_gradient(p, oc, s, d).0
+}
+
+/// Eq. (20) at (s, d) and its partial derivatives in s and d, by the chain rule through
+/// the obstacle's axes (X-hat, Y-hat).
+#[inline]
+pub(crate) fn obstacle_gradient(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> (f64, f64, f64) {
     let (sin, cos) = oc.heading.sin_cos();
     let (ds, dd) = (s - oc.s, d - oc.d);
     let x = cos * ds + sin * dd; // X-hat
     let y = -sin * ds + cos * dd; // Y-hat
     let along = x * x / (2.0 * p.rho_x * p.rho_x);
     let q = along + y * y / (2.0 * p.rho_y * p.rho_y);
+    let (along_x, q_y) = (x / (p.rho_x * p.rho_x), y / (p.rho_y * p.rho_y)); // q_x = along_x
     let k = if x < 0.0 { -1.0 } else { 1.0 };
-    let gamma = if q > 1e-12 { k * along / q.sqrt() } else { 0.0 };
-    let shaped = if p.shape == 1.0 { q } else { q.powf(p.shape) };
-    let theta = -shaped + p.speed_skew * oc.speed * gamma;
-    p.obstacle_peak * theta.exp() // eq. (20)
+    let (gamma, gamma_x, gamma_y) = if q > 1e-12 {
+        let root = q.sqrt();
+        let spread = along / (2.0 * q * root); // d(q^-1/2)/dq times -along
+        (k * along / root, k * (along_x / root - spread * along_x), -k * spread * q_y)
+    } else {
+        (0.0, 0.0, 0.0)
+    };
+    let (shaped, shaped_q) = match p.shape {
+        1.0 => (q, 1.0),
+        _ if q > 0.0 => (q.powf(p.shape), p.shape * q.powf(p.shape - 1.0)),
+        _ => (0.0, 0.0),
+    };
+    let skew = p.speed_skew * oc.speed;
+    let theta = -shaped + skew * gamma;
+    let value = p.obstacle_peak * theta.exp(); // eq. (20)
+    let (value_x, value_y) = (value * (skew * gamma_x - shaped_q * along_x), value * (skew * gamma_y - shaped_q * q_y));
+    (value, value_x * cos - value_y * sin, value_x * sin + value_y * cos)
 }
 
 /// Eq. (21): the field of a line at `distance` (m) from it, for a car `width` wide (W).
@@ -167,13 +198,21 @@ impl Field {
         cars + road // eq. (19)
     }
 
-    /// The field and its gradient (d/ds, d/dd) by central differences.
+    /// The field and its gradient (d/ds, d/dd), analytic: the lines' fields change only
+    /// across them (a line's start or end is a step the MPC does not linearise).
     pub fn gradient(&self, s: f64, d: f64, t: f64) -> (f64, f64, f64) {
-        const H: f64 = 1e-3;
-        let value = self.value(s, d, t);
-        let ds = (self.value(s + H, d, t) - self.value(s - H, d, t)) / (2.0 * H);
-        let dd = (self.value(s, d + H, t) - self.value(s, d - H, t)) / (2.0 * H);
-        (value, ds, dd)
+        let p = &self.params;
+        let (mut cars, mut cars_s, mut cars_d) = (0.0, 0.0, 0.0);
+        for oc in &self.obstacles {
+            let (value, along, across) = obstacle_gradient(p, &Obstacle { s: oc.s + oc.speed * t, ..*oc }, s, d);
+            (cars, cars_s, cars_d) = (cars + value, cars_s + along, cars_d + across);
+        }
+        let (mut road, mut road_d) = (0.0, 0.0);
+        for line in self.lines.iter().filter(|line| (line.from..=line.to).contains(&s)) {
+            let value = road_field(p, self.width, line.peak, line.distance(d));
+            (road, road_d) = (road + value, road_d - value * line.slope(d));
+        }
+        (cars + road, cars_s, cars_d + road_d) // eq. (19)
     }
 }
 
@@ -195,6 +234,40 @@ mod tests {
         assert!(obstacle_field(&p, &moving, 6.0, 0.0) > obstacle_field(&p, &moving, -6.0, 0.0));
         // One lane over, a car barely registers.
         assert!(obstacle_field(&p, &moving, 0.0, 4.0) < 0.01);
+    }
+
+    #[test]
+    fn the_analytic_gradient_matches_central_differences() {
+        let road = Road::new(
+            Pose { x: 0.0, y: 0.0, heading: 0.0 },
+            vec![Section::Straight { length: 500.0 }],
+            4.0,
+            vec![25.0, 25.0, 25.0],
+            &[(LaneId(2), 300.0)],
+        );
+        let obstacles = vec![
+            Obstacle { s: 40.0, d: -4.0, heading: 0.05, speed: 20.0 },
+            Obstacle { s: 55.0, d: -7.5, heading: -0.1, speed: 12.0 },
+        ];
+        for (shape, one_sided) in [(1.0, true), (1.3, false)] {
+            let params = FieldParams { shape, ..FieldParams::default() };
+            let lines = road_lines(&road, &params, one_sided);
+            let field = Field { params, width: 2.0, obstacles: obstacles.clone(), lines };
+            let h = 1e-5;
+            for (s, d, t) in
+                [(38.0, -3.1, 0.0), (46.0, -5.0, 0.4), (60.0, -9.3, 1.2), (30.0, 1.7, 0.0), (310.0, -9.0, 0.0)]
+            {
+                let (value, along, across) = field.gradient(s, d, t);
+                assert_eq!(value, field.value(s, d, t));
+                let fd_s = (field.value(s + h, d, t) - field.value(s - h, d, t)) / (2.0 * h);
+                let fd_d = (field.value(s, d + h, t) - field.value(s, d - h, t)) / (2.0 * h);
+                let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * (1.0 + b.abs());
+                assert!(
+                    close(along, fd_s) && close(across, fd_d),
+                    "at ({s}, {d}, {t}): {along} {across} against {fd_s} {fd_d}"
+                );
+            }
+        }
     }
 
     #[test]

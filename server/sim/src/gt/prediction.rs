@@ -82,14 +82,26 @@ pub fn advance(speed: f64, accel: f64, bounds: SpeedBounds, t: f64) -> (f64, f64
 /// the speed held within `bounds` while the acceleration pushes past one (as `advance`).
 /// A step is `advance` at `ramp.to`.
 pub fn advance_ramp(speed: f64, ramp: AccelRamp, bounds: SpeedBounds, t: f64) -> (f64, f64) {
+    advance_ramp_from(speed, ramp, bounds, t, &mut None)
+}
+
+/// `advance_ramp`, remembering in `ramp_end` where the whole ramp ends (it is the same for
+/// every `t` past the ramp), so that several instants of one ramp integrate it once.
+fn advance_ramp_from(
+    speed: f64,
+    ramp: AccelRamp,
+    bounds: SpeedBounds,
+    t: f64,
+    ramp_end: &mut Option<(f64, f64)>,
+) -> (f64, f64) {
     let rise = ramp.duration().min(t);
     if rise <= 0.0 {
         return advance(speed, ramp.to, bounds, t);
     }
-    let (ds, v) = advance_jerk(speed, ramp.from, ramp.jerk(), rise, bounds);
     if t <= rise {
-        return (ds, v);
+        return advance_jerk(speed, ramp.from, ramp.jerk(), rise, bounds);
     }
+    let (ds, v) = *ramp_end.get_or_insert_with(|| advance_jerk(speed, ramp.from, ramp.jerk(), rise, bounds));
     let (rest, v) = advance(v, ramp.to, bounds, t - rise);
     (ds + rest, v)
 }
@@ -139,8 +151,9 @@ pub fn predict(
     out: &mut Vec<Kinematics>,
 ) {
     out.clear();
+    let mut ramp_end = None;
     for t in params.times() {
-        let (ds, speed) = advance_ramp(now.speed, ramp, bounds, t);
+        let (ds, speed) = advance_ramp_from(now.speed, ramp, bounds, t, &mut ramp_end);
         let d = path.map_or(now.d, |p| p.offset_at(t));
         out.push(Kinematics { s: now.s + ds, d, speed });
     }

@@ -9,6 +9,7 @@
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::{self, Command, DriverParams, LateralPath, Style, VehicleParams, VehicleState};
@@ -490,8 +491,8 @@ impl World {
         self.decisions = decisions;
     }
 
-    /// The decisions of the game-theoretic cars that `pick` selects, made on
-    /// `decision_threads` threads when there are two or more of them (each reads the
+    /// The decisions of the game-theoretic cars that `pick` selects, made in
+    /// `decision_threads` parts in parallel when there are two or more of them (each reads the
     /// scene only, so the bits do not depend on the threads); empty otherwise, and the
     /// caller decides them in turn.
     fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Vec<(usize, Decision)> {
@@ -505,16 +506,10 @@ impl World {
         if gt.len() < 2 {
             return Vec::new();
         }
+        // On rayon's pool, built once for the process: a thread spawned per control period
+        // cost as much as a decision. A panic in a decision surfaces on this thread.
         let chunk = gt.len().div_ceil(self.decision_threads);
-        std::thread::scope(|scope| {
-            let handles: Vec<_> = gt
-                .chunks(chunk)
-                .map(|part| scope.spawn(move || part.iter().map(|&i| (i, self.decide_one(i))).collect::<Vec<_>>()))
-                .collect();
-            // A panicking thread leaves its cars to be decided in turn, where the panic
-            // then surfaces on this thread.
-            handles.into_iter().filter_map(|handle| handle.join().ok()).flatten().collect()
-        })
+        gt.par_chunks(chunk).flat_map_iter(|part| part.iter().map(|&i| (i, self.decide_one(i)))).collect()
     }
 
     /// How many threads the game-theoretic cars of one control period may decide on

@@ -105,8 +105,8 @@ impl Line {
 }
 
 /// Eq. (20): the field of one obstacle at (s, d).
-#[inline]
-pub(crate) fn obstacle_field(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> f64 {
+#[cfg(test)]
+fn obstacle_field(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> f64 {
     obstacle_gradient(p, oc, s, d).0
 }
 
@@ -186,19 +186,10 @@ pub struct Field {
 impl Field {
     /// Eq. (19) at (s, d), `t` seconds from now (obstacles moved on at their speed).
     pub fn value(&self, s: f64, d: f64, t: f64) -> f64 {
-        let p = &self.params;
-        let cars: f64 =
-            self.obstacles.iter().map(|oc| obstacle_field(p, &Obstacle { s: oc.s + oc.speed * t, ..*oc }, s, d)).sum();
-        let road: f64 = self
-            .lines
-            .iter()
-            .filter(|line| (line.from..=line.to).contains(&s))
-            .map(|line| road_field(p, self.width, line.peak, line.distance(d)))
-            .sum();
-        cars + road // eq. (19)
+        self.gradient(s, d, t).0
     }
 
-    /// The field and its gradient (d/ds, d/dd), analytic: the lines' fields change only
+    /// `value` with its gradient (d/ds, d/dd), analytic: the lines' fields change only
     /// across them (a line's start or end is a step the MPC does not linearise).
     pub fn gradient(&self, s: f64, d: f64, t: f64) -> (f64, f64, f64) {
         let p = &self.params;
@@ -257,8 +248,7 @@ mod tests {
             for (s, d, t) in
                 [(38.0, -3.1, 0.0), (46.0, -5.0, 0.4), (60.0, -9.3, 1.2), (30.0, 1.7, 0.0), (310.0, -9.0, 0.0)]
             {
-                let (value, along, across) = field.gradient(s, d, t);
-                assert_eq!(value, field.value(s, d, t));
+                let (_, along, across) = field.gradient(s, d, t);
                 let fd_s = (field.value(s + h, d, t) - field.value(s - h, d, t)) / (2.0 * h);
                 let fd_d = (field.value(s, d + h, t) - field.value(s, d - h, t)) / (2.0 * h);
                 let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * (1.0 + b.abs());

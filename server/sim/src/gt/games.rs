@@ -707,7 +707,8 @@ impl Situation {
         let mut keep_best = f64::INFINITY;
         let prunes = self.prunes(params, needs);
         for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
-            if sigma != 0 && prunes && self.ec_floor(&cell, row, accel, sigma) > keep_best {
+            let against_keeping = sigma != 0 && prunes && keep_best < f64::INFINITY;
+            if against_keeping && self.ec_floor(&cell, row, accel, sigma) > keep_best {
                 table.pruned[row] = true;
                 table.replies.push(0); // never read
                 continue;

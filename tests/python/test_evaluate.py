@@ -49,14 +49,39 @@ def test_results_are_written_with_plots(tmp_path):
     result = highway_arena.evaluate(["expert", "random"], "merge", episodes=2, out=tmp_path, quiet=True)
     names = sorted(os.listdir(tmp_path))
     assert names == [
-        "costs_merge.png", "episodes.csv", "rates_merge.png", "results.csv", "results.json", "results.md",
+        "costs_merge.png", "differences.csv", "episodes.csv", "rates_merge.png", "results.csv", "results.json",
+        "results.md",
     ]
     assert (tmp_path / "costs_merge.png").read_bytes().startswith(b"\x89PNG")
     assert result.summary("merge", "expert")["success"]["mean"] == 1.0, "the AV merges"
     assert len((tmp_path / "episodes.csv").read_text().splitlines()) == 1 + 4
 
 
+def test_differences_are_against_the_reference_seed_by_seed():
+    result = highway_arena.evaluate(
+        {"idle": "idle", "expert": "expert", "same": "idle"},
+        ["merge-random"],
+        episodes=4,
+        reference="idle",
+        bootstrap=500,
+        quiet=True,
+    )
+    same = result.difference("merge-random", "same")
+    assert same["return"]["difference"] == {"value": 0.0, "low": 0.0, "high": 0.0}, same["return"]
+    assert same["return"]["improvement"]["value"] == 0.5
+    # idle runs into merge's lane end; the AV merges: success is higher on every seed.
+    expert = result.difference("merge-random", "expert")
+    assert expert["success"]["difference"]["value"] == 1.0, expert["success"]
+    assert expert["return"]["difference"]["low"] > 0, expert["return"]
+    assert result.difference("merge-random", "idle") == {}, "the reference has no difference from itself"
+    assert "Paired differences from `idle`" in result.markdown
+    iqm = result.summary("merge-random", "expert")["return"]["iqm"]
+    assert iqm["low"] <= iqm["value"] <= iqm["high"], iqm
+
+
 def test_bad_input_is_refused_by_name():
+    with pytest.raises(ValueError, match="reference 'ppo' is not one of the policies"):
+        highway_arena.evaluate(["idle"], ["merge"], episodes=1, reference="ppo", quiet=True)
     with pytest.raises(ValueError, match="unknown built-in policy 'gt:calm:nash'"):
         highway_arena.evaluate(["gt:calm:nash"], ["merge"], episodes=1, quiet=True)
     with pytest.raises(ValueError, match="episodes must be at least 1"):

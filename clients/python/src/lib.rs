@@ -7,6 +7,7 @@
 use std::sync::Mutex;
 
 use arena_client::blocking::{Client as BlockingClient, Env as BlockingEnv};
+use arena_client::stats::Bootstrap;
 use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSource, eval};
 use arena_protocol::keys::DEFAULT_PREFIX;
 use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
@@ -319,11 +320,15 @@ fn info_from_dict(dict: &Bound<'_, PyDict>) -> PyResult<Info> {
 
 /// The tables of evaluated episodes, as `arena eval` writes them (`arena_client::eval`):
 /// `rows` are (policy, scenario, seed, agent, the agent's last info); returns (Markdown
-/// table, summary CSV, episodes CSV, JSON).
+/// table, summary CSV, paired differences CSV, episodes CSV, JSON); `reference` is the
+/// policy the others are compared with (`None`: the first), `bootstrap` the resamples.
 #[pyfunction]
+#[pyo3(signature = (rows, reference=None, bootstrap=None))]
 fn eval_report(
     rows: Vec<(String, String, u64, String, Bound<'_, PyDict>)>,
-) -> PyResult<(String, String, String, String)> {
+    reference: Option<String>,
+    bootstrap: Option<usize>,
+) -> PyResult<(String, String, String, String, String)> {
     let mut episodes = Vec::with_capacity(rows.len());
     for (policy, scenario, seed, agent, info) in rows {
         let info = info_from_dict(&info)?;
@@ -331,10 +336,13 @@ fn eval_report(
             eval::Episode::from_info(&policy, &scenario, seed, &agent, &info).map_err(PyValueError::new_err)?;
         episodes.push(episode);
     }
-    let summaries = eval::summarise(&episodes);
+    let bootstrap = Bootstrap { reps: bootstrap.unwrap_or(Bootstrap::default().reps), ..Bootstrap::default() };
+    let settings = eval::Settings { reference, bootstrap };
+    let summaries = eval::summarise(&episodes, &settings).map_err(PyValueError::new_err)?;
     Ok((
         eval::markdown(&summaries),
         eval::csv(&summaries),
+        eval::differences_csv(&summaries),
         eval::episodes_csv(&episodes),
         eval::json(&summaries, &episodes),
     ))

@@ -25,6 +25,7 @@
 pub mod blocking;
 pub mod eval;
 pub mod placement;
+pub mod stats;
 
 use std::fmt;
 use std::sync::Arc;

@@ -1,7 +1,10 @@
 """``highway_arena.evaluate``: the Python twin of ``arena eval`` (docs/evaluation.md).
 Policies are compared on scenarios over the same seeds; built-in drivers run in the
 server, callables (a trained Stable-Baselines3 model, a behaviour-cloning policy) in this
-process; the figures and their 95 % intervals come from the same Rust code as the CLI's.
+process; the figures and their 95 % intervals come from the same Rust code as the CLI's:
+rates with Wilson intervals, other figures as median and IQM with seeded bootstrap
+intervals (the estimators of rliable, checked against it), and every policy's paired
+differences from a reference policy over the same seeds.
 
     import highway_arena
     result = highway_arena.evaluate(
@@ -28,8 +31,9 @@ CLIENT_POLICIES = ("idle", "random")
 
 @dataclass
 class Evaluation:
-    """What ``evaluate`` found: the table as Markdown, one summary per (scenario,
-    policy) with each figure's mean, 95 % interval and count, and every episode."""
+    """What ``evaluate`` found: the tables as Markdown, one summary per (scenario,
+    policy) with each figure's count, mean and the mean's interval, median and IQM with
+    their intervals, the differences from the reference policy, and every episode."""
 
     markdown: str
     summaries: list
@@ -38,14 +42,25 @@ class Evaluation:
     _files: dict = field(repr=False, default_factory=dict)
 
     def summary(self, scenario, policy) -> dict:
-        """{figure: {"mean", "low", "high", "n"}} of one policy on one scenario."""
+        """{figure: {"n", "mean", "low", "high", "median", "iqm"}} of one policy on one
+        scenario; ``median`` and ``iqm`` are {"value", "low", "high"} (None for rates)."""
         for s in self.summaries:
             if s["scenario"] == scenario and s["policy"] == policy:
                 return {key: estimate for key, estimate in s["figures"]}
         raise KeyError(f"no summary of policy {policy!r} on scenario {scenario!r}")
 
+    def difference(self, scenario, policy) -> dict:
+        """{figure: {"n", "difference", "improvement"}}: ``policy`` minus the reference
+        over the same seeds (``difference``: {"value", "low", "high"}) and rliable's
+        probability that ``policy`` is better (None where a figure has no better side);
+        empty for the reference itself."""
+        for s in self.summaries:
+            if s["scenario"] == scenario and s["policy"] == policy:
+                return {key: d for key, d in s["differences"]}
+        raise KeyError(f"no summary of policy {policy!r} on scenario {scenario!r}")
+
     def write(self, out) -> list:
-        """Writes results.md, results.csv, episodes.csv, results.json and, with
+        """Writes results.md, results.csv, differences.csv, episodes.csv, results.json and, with
         matplotlib installed, costs_<scenario>.png and rates_<scenario>.png into ``out``;
         returns the paths written."""
         os.makedirs(out, exist_ok=True)
@@ -130,6 +145,8 @@ def evaluate(
     connect=None,
     out=None,
     quiet=False,
+    reference=None,
+    bootstrap=5000,
     **env_kwargs,
 ) -> Evaluation:
     """Runs each policy for ``episodes`` episodes of each scenario; episode i is reset with
@@ -138,8 +155,12 @@ def evaluate(
     observation -> action, or a model with ``predict`` (Stable-Baselines3); ``policies``
     is a list of those or a dict {name: policy}. Every learner of a scenario follows the
     policy. ``out`` writes the tables and plots there (``Evaluation.write``); other
-    keyword arguments go to each env (``action_type``, ``overrides``, ...)."""
+    keyword arguments go to each env (``action_type``, ``overrides``, ...). ``reference``
+    names the policy the others are compared with seed by seed (default: the first);
+    ``bootstrap`` is the number of resamples of every interval but the rates'."""
     named = _named(policies)
+    if reference is not None and reference not in [name for name, _ in named]:
+        raise ValueError(f"reference {reference!r} is not one of the policies {[name for name, _ in named]}")
     scenarios = [scenarios] if isinstance(scenarios, str) else list(scenarios)
     episodes = int(episodes)
     if episodes < 1:
@@ -157,14 +178,20 @@ def evaluate(
     finally:
         if bar is not None:
             bar.close()
-    markdown, csv, episodes_csv, document = _core.eval_report(rows)
+    markdown, csv, differences_csv, episodes_csv, document = _core.eval_report(rows, reference, int(bootstrap))
     parsed = json.loads(document)
     result = Evaluation(
         markdown=markdown,
         summaries=parsed["summaries"],
         episodes=parsed["episodes"],
         figures=parsed["figures"],
-        _files={"results.md": markdown, "results.csv": csv, "episodes.csv": episodes_csv, "results.json": document},
+        _files={
+            "results.md": markdown,
+            "results.csv": csv,
+            "differences.csv": differences_csv,
+            "episodes.csv": episodes_csv,
+            "results.json": document,
+        },
     )
     if out is not None:
         result.write(out)

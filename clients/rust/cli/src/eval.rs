@@ -1,14 +1,16 @@
-//! `arena eval`: policies compared on scenarios over the same seeds (a paired comparison),
-//! each figure with a 95 % interval (`arena_client::eval`), printed as one table and
-//! written as Markdown, CSV and JSON with box plots of the paper's cost components and
-//! bar charts of success and collision rates. Built-in drivers (`gt:...`, `expert`,
+//! `arena eval`: policies compared on scenarios over the same seeds (a paired comparison):
+//! rates with Wilson intervals, other figures as median and IQM with bootstrap intervals,
+//! and every policy's paired differences from a reference policy (`arena_client::eval`),
+//! printed as tables and written as Markdown, CSV and JSON with box plots of the paper's
+//! cost components and bar charts of success and collision rates. Built-in drivers (`gt:...`, `expert`,
 //! `idm`) run in the server (the env's `policy` option); `idle` and `random` act here.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use arena_client::blocking::{Client, Env};
-use arena_client::eval::{self, Episode, Summary};
+use arena_client::eval::{self, Episode, Settings, Summary};
+use arena_client::stats::Bootstrap;
 use arena_client::{Action, CreateOptions, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
 use arena_protocol::{BuiltinPolicy, MetaAction, Space};
@@ -47,7 +49,15 @@ pub struct EvalArgs {
     /// env limit).
     #[arg(long, default_value_t = 16)]
     batch: u64,
-    /// Folder for results.md, results.csv, episodes.csv, results.json and the plots
+    /// The policy the others are compared with, seed by seed (default: the first
+    /// `--policy`).
+    #[arg(long)]
+    reference: Option<String>,
+    /// Bootstrap resamples of every interval but the rates' (seeded: the same episodes
+    /// give the same table).
+    #[arg(long, default_value_t = Bootstrap::default().reps)]
+    bootstrap: usize,
+    /// Folder for results.md, results.csv, differences.csv, episodes.csv, results.json and the plots
     /// (created if missing).
     #[arg(long, default_value = "out/eval")]
     out: PathBuf,
@@ -93,6 +103,10 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             anyhow::bail!("{what} {twice} is given twice");
         }
     }
+    if let Some(reference) = args.reference.as_ref().filter(|r| !args.policies.contains(r)) {
+        anyhow::bail!("--reference {reference} is not one of the --policy values ({})", args.policies.join(", "));
+    }
+    anyhow::ensure!(args.bootstrap >= 100, "--bootstrap must be at least 100 resamples, not {}", args.bootstrap);
     let (client, server) = crate::connect(&args.connection)?;
     let total = args.episodes.saturating_mul((policies.len() * args.scenarios.len()) as u64);
     let bar = ProgressBar::new(total).with_style(
@@ -110,7 +124,11 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     }
     bar.finish_and_clear();
     client.close()?;
-    let summaries = eval::summarise(&episodes);
+    let settings = Settings {
+        reference: args.reference.clone(),
+        bootstrap: Bootstrap { reps: args.bootstrap, ..Bootstrap::default() },
+    };
+    let summaries = eval::summarise(&episodes, &settings).map_err(anyhow::Error::msg)?;
     print!("{}", eval::markdown(&summaries));
     write(&args, &summaries, &episodes)?;
     Ok(())
@@ -241,6 +259,7 @@ fn write(args: &EvalArgs, summaries: &[Summary], episodes: &[Episode]) -> anyhow
     };
     save("results.md", markdown_document(args, summaries))?;
     save("results.csv", eval::csv(summaries))?;
+    save("differences.csv", eval::differences_csv(summaries))?;
     save("episodes.csv", eval::episodes_csv(episodes))?;
     save("results.json", eval::json(summaries, episodes))?;
     for scenario in &args.scenarios {
@@ -254,7 +273,7 @@ fn write(args: &EvalArgs, summaries: &[Summary], episodes: &[Episode]) -> anyhow
 fn written(out: &Path, scenarios: &[String]) -> String {
     let plots = if scenarios.len() == 1 { scenarios[0].clone() } else { "<scenario>".to_string() };
     format!(
-        "{0}/results.md, results.csv, episodes.csv, results.json, costs_{plots}.png, rates_{plots}.png",
+        "{0}/results.md, results.csv, differences.csv, episodes.csv, results.json, costs_{plots}.png, rates_{plots}.png",
         out.display()
     )
 }
@@ -269,12 +288,16 @@ fn markdown_document(args: &EvalArgs, summaries: &[Summary]) -> String {
         args.max_cycles.map_or(String::new(), |n| format!(", {n} steps per episode"))
     );
     text.push_str(&eval::markdown(summaries));
-    text.push_str(
-        "\nRates: mean and 95 % Wilson interval. Other figures: mean ± half-width of the 95 % t interval, \
-         over the episodes where the figure applies.\n\n",
-    );
-    for (_, heading, what) in eval::FIGURES {
-        text.push_str(&format!("- **{heading}**: {what}\n"));
+    text.push_str(&format!(
+        "\nRates: mean and 95 % Wilson interval. Other figures: median and interquartile mean (the mean of the \
+         middle half) over the episodes where the figure applies, with 95 % percentile intervals from {} bootstrap \
+         resamples (seed 0), as rliable computes them; the mean and its t interval are in results.csv and \
+         results.json. \"(1 distinct)\": every episode came out the same, so there is nothing to put an \
+         interval on. docs/evaluation.md says how to read each table.\n\n",
+        args.bootstrap
+    ));
+    for figure in eval::FIGURES {
+        text.push_str(&format!("- **{}**: {}\n", figure.heading, figure.what));
     }
     text
 }

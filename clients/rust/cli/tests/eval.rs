@@ -62,7 +62,7 @@ fn the_rms_costs_and_t_c_of_the_gt_ec_on_merge_equal_arena_papers() {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let json = results(&out);
     let figure = |episode: &serde_json::Value, key: &str| {
-        let k = arena_client::eval::FIGURES.iter().position(|(name, ..)| *name == key).expect("a figure");
+        let k = arena_client::eval::figure_index(key).expect("a figure");
         episode["figures"][k].as_f64().expect("a number")
     };
     for (policy, style) in policies.into_iter().zip(Style::ALL) {
@@ -118,11 +118,16 @@ fn the_same_seeds_give_identical_tables() {
 fn bad_policies_scenarios_and_counts_are_refused_by_name() {
     let harness = serve();
     let out = out_dir("bad");
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 6] = [
         (&["--scenario", "merge", "--policy", "gt:calm:nash"], "unknown built-in policy 'gt:calm:nash'"),
         (&["--scenario", "nowhere"], "nowhere"),
         (&["--scenario", "merge", "--episodes", "0"], "--episodes must be at least 1"),
         (&["--scenario", "merge", "--policy", "idle", "--policy", "idle"], "--policy idle is given twice"),
+        (
+            &["--scenario", "merge", "--policy", "idle", "--reference", "ppo"],
+            "--reference ppo is not one of the --policy",
+        ),
+        (&["--scenario", "merge", "--bootstrap", "10"], "--bootstrap must be at least 100"),
     ];
     for (args, message) in cases {
         let output = eval(&harness, &out, args);

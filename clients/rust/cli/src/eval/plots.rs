@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use arena_client::eval::{Episode, FIGURES, Summary};
+use arena_client::eval::{Episode, FIGURES, Summary, figure_index};
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -19,7 +19,7 @@ fn font() -> anyhow::Result<()> {
 }
 
 fn column(key: &str) -> usize {
-    FIGURES.iter().position(|(k, ..)| *k == key).unwrap_or(0)
+    figure_index(key).unwrap_or(0)
 }
 
 /// The policies of `scenario`, in the order they ran.
@@ -62,7 +62,7 @@ pub fn costs(file: &Path, scenario: &str, episodes: &[Episode]) -> anyhow::Resul
         chart
             .configure_mesh()
             .light_line_style(WHITE)
-            .y_desc(format!("{} (log)", FIGURES[k].1))
+            .y_desc(format!("{} (log)", FIGURES[k].heading))
             .y_label_formatter(&|v| format!("{v:.0e}"))
             .x_label_formatter(&|v| label(v, &names))
             .draw()?;

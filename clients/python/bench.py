@@ -23,20 +23,24 @@ import time
 import highway_arena
 
 
-def single(where: dict, scenario: str, seconds: float) -> float:
+def single(where: dict, scenario: str, seconds: float) -> tuple:
+    """(simulated s per wall s, median step time in µs) of one env stepped alone."""
     env = highway_arena.parallel_env(scenario, **where)
     env.reset(seed=0)
-    steps, episodes = 0, 0
+    steps, episodes, times = 0, 0, []
     started = time.perf_counter()
     while time.perf_counter() - started < seconds:
+        before = time.perf_counter()
         env.step({agent: 1 for agent in env.agents})
+        times.append(time.perf_counter() - before)
         steps += 1
         if not env.agents:
             episodes += 1
             env.reset(seed=episodes)
     elapsed = time.perf_counter() - started
     env.close()
-    return steps * env.dt / elapsed
+    times.sort()
+    return steps * env.dt / elapsed, times[len(times) // 2] * 1e6
 
 
 def rounds_per_second(step, seconds: float) -> float:
@@ -97,10 +101,24 @@ def main() -> int:
     parser.add_argument(
         "--batch", "--batches", dest="batches", default="16,64,128", help="comma-separated batch sizes (default 16,64,128)"
     )
+    parser.add_argument(
+        "--override",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a scenario override for every env, e.g. 'vehicle.ac.driver={ kind = \"idm\", style = \"normal\" }' "
+        "(repeatable; VALUE as in a scenario file's TOML)",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--vs-envpool", action="store_true", help="also measure EnvPool's Highway-v0 (pip install envpool)")
     args = parser.parse_args()
     sizes = [int(size) for size in args.batches.split(",") if size]
+    overrides = {}
+    for text in args.override:
+        key, sep, value = text.partition("=")
+        if not sep or not key:
+            parser.error(f"--override {text!r} is not KEY=VALUE")
+        overrides[key.strip()] = value.strip()
 
     if args.vs_envpool:
         try:
@@ -110,9 +128,11 @@ def main() -> int:
 
     def run(connect: str) -> dict:
         where = {"connect": connect, "mode": args.mode}
-        figures = {"single_sim_s_per_s": None, "batch": {}, "vector": {}}
+        if overrides:
+            where["overrides"] = overrides
+        figures = {"single_sim_s_per_s": None, "single_step_p50_us": None, "batch": {}, "vector": {}}
         print("one env through the PettingZoo API ...", file=sys.stderr)
-        figures["single_sim_s_per_s"] = single(where, args.scenario, args.seconds)
+        figures["single_sim_s_per_s"], figures["single_step_p50_us"] = single(where, args.scenario, args.seconds)
         for size in sizes:
             print(f"batch of {size} envs ...", file=sys.stderr)
             figures["batch"][str(size)] = batched(where, args.scenario, size, args.seconds)
@@ -134,7 +154,10 @@ def main() -> int:
         print(json.dumps({"scenario": args.scenario, **figures}, indent=2))
     else:
         print(f"scenario {args.scenario}:")
-        print(f"one env:            {figures['single_sim_s_per_s']:9.1f} simulated s per wall s")
+        print(
+            f"one env:            {figures['single_sim_s_per_s']:9.1f} simulated s per wall s"
+            f" (step p50 {figures['single_step_p50_us']:.0f} µs)"
+        )
         for size, rate in figures["batch"].items():
             print(f"batch of {size:>3}:       {rate:9.1f} simulated s per wall s")
         for size, rate in figures["vector"].items():

@@ -12,6 +12,7 @@ use arena_sim::Goal;
 use arena_sim::LaneId;
 use arena_sim::{Ending, Status, VehicleId, World};
 
+use super::risk::closest_approach;
 use super::simulate::StepCost;
 
 /// Why vehicle `id`'s episode ended, if it did (`World::ending` in the protocol's words;
@@ -172,29 +173,6 @@ fn percentile(values: &mut [f64], q: f64) -> f64 {
 /// the road's end) where the goal asks (`Goal::reached`).
 fn succeeded(world: &World, id: VehicleId, goal: &Goal, end: EndReason) -> bool {
     matches!(end, EndReason::TimeLimit | EndReason::RoadEnd) && goal.reached(world, id)
-}
-
-/// The smallest bumper-to-bumper gap (m) and time to collision (s) to the cars that
-/// matter now: the car ahead in the lane the vehicle is in and in the lane it changes
-/// to, and the car behind in that target lane. Infinite when there is none (or, for the
-/// time, when no gap ahead or behind closes).
-fn closest_approach(world: &mut World, id: VehicleId) -> (f64, f64) {
-    let scene = world.scene();
-    let car = scene.car(id);
-    let length = scene.vehicle.length;
-    let (s, speed) = (car.state.s, car.speed());
-    // (gap, closing speed) to the car ahead in each lane, and behind in the target lane.
-    let ahead = [car.lane, car.target_lane]
-        .map(|lane| scene.ahead(lane, s, &[id]).map(|ahead| (ahead.state.s - s - length, speed - ahead.speed())));
-    let behind = (car.target_lane != car.lane)
-        .then(|| scene.behind(car.target_lane, s, &[id]))
-        .flatten()
-        .map(|behind| (s - behind.state.s - length, behind.speed() - speed));
-    ahead.into_iter().chain([behind]).flatten().fold((f64::INFINITY, f64::INFINITY), |(gap, ttc), (g, closing)| {
-        // Beside a car (g <= 0) there is no time to close a gap along the road.
-        let time = if g > 0.0 && closing > 0.0 { g / closing } else { f64::INFINITY };
-        (gap.min(g), ttc.min(time))
-    })
 }
 
 #[cfg(test)]

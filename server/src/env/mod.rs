@@ -17,6 +17,7 @@ mod observation;
 mod overrides;
 mod render;
 mod reward;
+mod risk;
 mod simulate;
 
 use arena_protocol::{

@@ -1,10 +1,12 @@
 //! The simulate phase of a step: the world advanced by one env step, tick by tick, with
 //! each agent's cost (eq. 9-14) sampled at the end of every control period it drives, so
-//! the reward and the infos read the step's mean cost without another pass, and the
+//! the reward and the infos read the step's mean cost and risk without another pass, and the
 //! acceleration it was commanded in each period, for the episode's jerk.
 
 use arena_sim::CostComponents;
 use arena_sim::{Status, VehicleId, World};
+
+use super::risk;
 
 /// The cost of one agent over one env step, sampled at the end of each control period
 /// it was driving.
@@ -20,6 +22,8 @@ pub struct StepCost {
     pub samples: u32,
     /// Mean speed along the lane (m/s) at the samples.
     pub speed: f64,
+    /// Mean risk at the samples (`risk::risk`, in [0, 1]).
+    pub risk: f64,
 }
 
 /// Advances the world by `step_dt` and writes into `costs` each vehicle's mean cost over
@@ -69,6 +73,7 @@ pub fn advance(
             },
             weighted: sum.weighted / n,
             speed: sum.speed / n,
+            risk: sum.risk / n,
             ..*sum
         };
     }
@@ -83,4 +88,5 @@ fn sample(world: &mut World, id: VehicleId, sum: &mut StepCost) {
     sum.samples += 1;
     sum.speed += vehicle.state.lane_speed();
     sum.weighted += cost.weighted(vehicle.style);
+    sum.risk += risk::risk(world, id);
 }

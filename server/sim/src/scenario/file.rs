@@ -42,12 +42,17 @@ pub(super) struct GoalFile {
 #[serde(deny_unknown_fields, default)]
 pub(super) struct RewardFile {
     pub(super) cost_scale: f64,
+    pub(super) risk_weight: f64,
     pub(super) crash: Option<f64>,
 }
 
 impl Default for RewardFile {
     fn default() -> Self {
-        RewardFile { cost_scale: RewardSpec::DEFAULT_COST_SCALE, crash: None }
+        RewardFile {
+            cost_scale: RewardSpec::DEFAULT_COST_SCALE,
+            risk_weight: RewardSpec::DEFAULT_RISK_WEIGHT,
+            crash: None,
+        }
     }
 }
 

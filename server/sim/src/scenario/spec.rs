@@ -100,8 +100,13 @@ pub struct GtTraffic {
 pub struct RewardSpec {
     /// J_0 of r = J_0 / (J_0 + J): the cost at which a step earns half the most.
     pub cost_scale: f64,
-    /// The reward of the step an agent crashes or leaves the road; `None`: minus the
-    /// episode length in steps, below any episode without a crash.
+    /// What a step at full risk costs (the env's `risk`: 1 at contact, 0 beyond a 1.5 s
+    /// time to collision, a 0.5 s headway and 1 m of sideways clearance): a step earns
+    /// J_0 / (J_0 + J) x progress - risk_weight x risk. 0 turns the term off.
+    pub risk_weight: f64,
+    /// The reward of the step an agent crashes or leaves the road; `None`: minus
+    /// (1 + risk_weight) times the episode length in steps, below any episode without a
+    /// crash.
     pub crash: Option<f64>,
 }
 
@@ -110,6 +115,16 @@ impl RewardSpec {
     /// target speed (0.2 x 11.2^2); calm driving costs a few units and earns about 0.8
     /// (docs/rewards.md).
     pub const DEFAULT_COST_SCALE: f64 = 25.0;
+    /// The risk weight by default (docs/rewards.md, "Risk": the smallest of those tried
+    /// under which a policy that passes cars side by side returns less than the AV).
+    pub const DEFAULT_RISK_WEIGHT: f64 = 10.0;
+
+    /// The crash reward for episodes of `max_cycles` steps: `crash`, else minus
+    /// (1 + risk_weight) x max_cycles, less than any episode without a crash returns
+    /// (each of its steps earns at least -risk_weight, a crash episode's others at most 1).
+    pub fn crash_reward(&self, max_cycles: u32) -> f64 {
+        self.crash.unwrap_or(-(1.0 + self.risk_weight) * f64::from(max_cycles))
+    }
 }
 
 /// What a learner's episode must achieve to count as a success (`arena eval`, the

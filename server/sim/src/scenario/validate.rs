@@ -69,7 +69,10 @@ impl RewardFile {
         if let Some(crash) = self.crash.filter(|c| !(c.is_finite() && *c < 0.0)) {
             return Err(invalid("reward.crash", format!("must be a negative number, not {crash}")));
         }
-        Ok(RewardSpec { cost_scale: self.cost_scale, crash: self.crash })
+        if !(self.risk_weight.is_finite() && self.risk_weight >= 0.0) {
+            return Err(invalid("reward.risk_weight", format!("must be 0 or more, not {}", self.risk_weight)));
+        }
+        Ok(RewardSpec { cost_scale: self.cost_scale, risk_weight: self.risk_weight, crash: self.crash })
     }
 }
 

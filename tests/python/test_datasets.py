@@ -195,6 +195,27 @@ def test_bc_beats_a_random_policy_on_merge_random(merge_random):
     assert cloned["return"]["mean"] > random["return"]["mean"] + 50, (cloned["return"], random["return"])
 
 
+def test_recording_and_evaluation_draw_from_disjoint_seeds_by_default():
+    dataset = highway_arena.record("merge", 2, max_cycles=5)
+    assert highway_arena.training_seeds(dataset) == [highway_arena.RECORD_SEED, highway_arena.RECORD_SEED + 1]
+    policy = bc.fit(dataset, seed=0, epochs=1)
+    assert policy.training_seeds == [highway_arena.RECORD_SEED, highway_arena.RECORD_SEED + 1]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # evaluate's default seeds are held out: no warning
+        highway_arena.evaluate({"bc": policy}, "merge", episodes=2, max_cycles=5, quiet=True)
+
+
+def test_evaluating_a_policy_on_its_training_seeds_warns_by_name(merge_random, tmp_path):
+    policy = bc.fit(merge_random, seed=0, epochs=1)
+    assert policy.training_seeds == list(range(30))
+    with pytest.warns(UserWarning, match=r"policy 'bc' is evaluated on 3 seeds its training data holds \(27, 28, 29\)"):
+        highway_arena.evaluate({"bc": policy}, "merge-random", episodes=3, seed=27, max_cycles=5, quiet=True)
+    policy.save(tmp_path / "bc.npz")
+    assert bc.load(tmp_path / "bc.npz").training_seeds == list(range(30)), "the seeds travel with the file"
+
+
 def test_bc_is_deterministic_given_its_seed_and_round_trips_through_npz(merge_random, tmp_path):
     observations, actions = bc.arrays(merge_random)
     first = bc.fit((observations, actions), seed=3, epochs=5, action_space=merge_random.action_space)

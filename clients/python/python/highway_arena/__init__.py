@@ -44,7 +44,7 @@ from ._connection import CONNECTION_KEYWORDS, default_connect
 from ._core import END_REASONS, INFO_KEYS, META_ACTIONS
 from ._server import LocalServer, find_server_binary, launch_server, serving
 from .batch import BatchEnv
-from .datasets import record
+from .datasets import RECORD_SEED, record, training_seeds
 from .evaluation import Evaluation, evaluate
 from .parallel import ParallelEnv
 from .single import GymEnv
@@ -55,6 +55,7 @@ __all__ = [
     "END_REASONS",
     "INFO_KEYS",
     "META_ACTIONS",
+    "RECORD_SEED",
     "ArenaError",
     "ArenaTimeoutError",
     "BatchEnv",
@@ -80,6 +81,7 @@ __all__ = [
     "parallel_env",
     "record",
     "serving",
+    "training_seeds",
     "vector_env",
 ]
 

@@ -49,13 +49,29 @@ def arrays(data) -> tuple[np.ndarray, np.ndarray]:
     raise TypeError(f"fit takes a MinariDataset or (observations, actions), not {type(data).__name__}")
 
 
+# The fields of a saved policy that some policies lack.
+OPTIONAL = ("n_actions", "low", "high", "target_mean", "target_std", "training_seeds")
+
+
 class Policy:
     """A fitted MLP. ``policy(observation)`` is the action for one observation (an int
     for a discrete policy, a float32 array for a continuous one) or, for a batch
     (2-D), an array of actions; ``policy.probabilities(observations)`` gives a discrete
     policy's class probabilities."""
 
-    def __init__(self, mean, std, layers, discrete: bool, n_actions=None, low=None, high=None, target_mean=None, target_std=None):
+    def __init__(
+        self,
+        mean,
+        std,
+        layers,
+        discrete: bool,
+        n_actions=None,
+        low=None,
+        high=None,
+        target_mean=None,
+        target_std=None,
+        training_seeds=None,
+    ):
         self.mean = np.asarray(mean, dtype=np.float64)
         self.std = np.asarray(std, dtype=np.float64)
         self.layers = [(np.asarray(w, dtype=np.float64), np.asarray(b, dtype=np.float64)) for w, b in layers]
@@ -65,6 +81,9 @@ class Policy:
         self.high = None if high is None else np.asarray(high, dtype=np.float64)
         self.target_mean = None if target_mean is None else np.asarray(target_mean, dtype=np.float64)
         self.target_std = None if target_std is None else np.asarray(target_std, dtype=np.float64)
+        # The reset seeds of the episodes it was fitted to, when its data said them:
+        # ``evaluate`` warns when it plays the policy on them.
+        self.training_seeds = None if training_seeds is None else [int(s) for s in np.asarray(training_seeds).ravel()]
 
     def _outputs(self, observations: np.ndarray) -> np.ndarray:
         x = (np.asarray(observations, dtype=np.float64).reshape(len(observations), -1) - self.mean) / self.std
@@ -101,7 +120,7 @@ class Policy:
         }
         for i, (w, b) in enumerate(self.layers):
             fields[f"w{i}"], fields[f"b{i}"] = w, b
-        for name in ("n_actions", "low", "high", "target_mean", "target_std"):
+        for name in OPTIONAL:
             value = getattr(self, name)
             if value is not None:
                 fields[name] = np.asarray(value)
@@ -115,7 +134,7 @@ class Policy:
             if version != FORMAT_VERSION:
                 raise ValueError(f"{path}: a bc policy of format {version}; this highway_arena reads {FORMAT_VERSION}")
             layers = [(data[f"w{i}"], data[f"b{i}"]) for i in range(int(data["n_layers"]))]
-            optional = {name: data[name] for name in ("n_actions", "low", "high", "target_mean", "target_std") if name in data}
+            optional = {name: data[name] for name in OPTIONAL if name in data}
             return cls(data["mean"], data["std"], layers, bool(data["discrete"]), **optional)
 
 
@@ -244,4 +263,8 @@ def fit(
                     m_hat = moments[i][j] / (1 - beta1**t)
                     v_hat = squares[i][j] / (1 - beta2**t)
                     param -= learning_rate * m_hat / (np.sqrt(v_hat) + eps)
+    if hasattr(data, "storage"):
+        from .datasets import training_seeds
+
+        extra["training_seeds"] = training_seeds(data)
     return Policy(mean, std, layers, discrete, **extra)

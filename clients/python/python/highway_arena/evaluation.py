@@ -19,11 +19,13 @@ from __future__ import annotations
 import json
 import os
 import sys
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from . import _core
+from .datasets import RECORD_SEED
 from .parallel import ParallelEnv
 
 CLIENT_POLICIES = ("idle", "random")
@@ -98,6 +100,25 @@ def _named(policies) -> list:
     return named
 
 
+def _warn_on_training_seeds(named, seeds) -> None:
+    """Warns for each policy that says which seeds it was trained on (``training_seeds``,
+    as ``highway_arena.bc.fit`` keeps them from a recorded dataset) and is about to be
+    evaluated on some of them."""
+    for name, policy in named:
+        trained = getattr(policy, "training_seeds", None)
+        if not trained:
+            continue
+        overlap = sorted(set(trained).intersection(seeds))
+        if overlap:
+            shown = ", ".join(map(str, overlap[:5])) + (", ..." if len(overlap) > 5 else "")
+            warnings.warn(
+                f"policy {name!r} is evaluated on {len(overlap)} seeds its training data holds ({shown}): "
+                f"those episodes are not held out; evaluate from another seed= (record starts at {RECORD_SEED})",
+                UserWarning,
+                stacklevel=3,
+            )
+
+
 def _act(policy, observation):
     """The action of an external policy: a callable, or an SB3-style model (``predict``
     returning (action, state))."""
@@ -167,6 +188,7 @@ def evaluate(
         raise ValueError(f"episodes must be at least 1, not {episodes}")
     if not scenarios:
         raise ValueError("give at least one scenario")
+    _warn_on_training_seeds(named, range(int(seed), int(seed) + episodes))
     rows = []
     bar = _progress(episodes * len(named) * len(scenarios), quiet)
     try:

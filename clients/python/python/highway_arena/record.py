@@ -15,7 +15,7 @@ import os
 import sys
 import types
 
-from .datasets import FAILURES, GAMES, STYLES, record
+from .datasets import FAILURES, GAMES, RECORD_SEED, STYLES, record
 
 
 def _value(text: str):
@@ -50,7 +50,13 @@ def parser() -> argparse.ArgumentParser:
         help=f"the AV in the learner's place: gt:<{'|'.join(STYLES)}>:<{'|'.join(GAMES)}>, or 'expert' "
         "(the learner's own style in the scenario file, stackelberg); default gt:normal:stackelberg",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the first episode; episode i uses SEED + i (default 0)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=RECORD_SEED,
+        help=f"seed of the first episode; episode i uses SEED + i (default {RECORD_SEED:_}, apart from the seeds "
+        "evaluation starts at, 0)",
+    )
     p.add_argument("--dataset-id", help="Minari dataset id (default highway_arena/<scenario>/gt-<style>-<game>-v0)")
     p.add_argument("--path", help="Minari datasets directory to write in (default $MINARI_DATASETS_PATH, else ~/.minari/datasets)")
     p.add_argument("--action-type", choices=("meta", "continuous"), default="meta", help="the learner's action space (default meta)")

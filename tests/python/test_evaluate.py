@@ -79,6 +79,19 @@ def test_differences_are_against_the_reference_seed_by_seed():
     assert iqm["low"] <= iqm["value"] <= iqm["high"], iqm
 
 
+def test_a_league_gathers_python_policies_and_refuses_other_seeds(tmp_path):
+    league = tmp_path / "league.json"
+    common = dict(episodes=2, max_cycles=20, league=str(league), bootstrap=200, quiet=True)
+    highway_arena.evaluate({"idle": "idle"}, "merge-random", **common)
+    highway_arena.evaluate({"keep": lambda observation: 1}, "merge-random", **common)
+    table = (tmp_path / "league.md").read_text()
+    assert "| idle |" in table and "| keep |" in table, table
+    before = league.read_text()
+    with pytest.raises(ValueError, match="first seed 3, not the league's 0"):
+        highway_arena.evaluate({"random": "random"}, "merge-random", seed=3, **common)
+    assert league.read_text() == before
+
+
 def test_bad_input_is_refused_by_name():
     with pytest.raises(ValueError, match="reference 'ppo' is not one of the policies"):
         highway_arena.evaluate(["idle"], ["merge"], episodes=1, reference="ppo", quiet=True)

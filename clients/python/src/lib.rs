@@ -348,6 +348,40 @@ fn eval_report(
     ))
 }
 
+/// Adds evaluated episodes (`rows` as `eval_report` takes them), played under the given
+/// settings, to a league (`league`: the file's text, `None` for a new one); returns the
+/// league file's new text and league.md ranked by `rank` (`arena_client::eval::league`).
+#[pyfunction]
+#[pyo3(signature = (league, rows, scenarios, seed, episodes, max_cycles=None, rank="return".to_string(), bootstrap=None))]
+#[allow(clippy::too_many_arguments)]
+fn league_add(
+    league: Option<String>,
+    rows: Vec<(String, String, u64, String, Bound<'_, PyDict>)>,
+    scenarios: Vec<String>,
+    seed: u64,
+    episodes: u64,
+    max_cycles: Option<u32>,
+    rank: String,
+    bootstrap: Option<usize>,
+) -> PyResult<(String, String)> {
+    use arena_client::eval::league::{League, LeagueSettings, league_markdown};
+    let mut parsed = Vec::with_capacity(rows.len());
+    for (policy, scenario, seed, agent, info) in rows {
+        let info = info_from_dict(&info)?;
+        parsed.push(eval::Episode::from_info(&policy, &scenario, seed, &agent, &info).map_err(PyValueError::new_err)?);
+    }
+    let run = LeagueSettings { scenarios, seed, episodes, max_cycles };
+    let mut league = match league {
+        Some(text) => League::from_json(&text).map_err(PyValueError::new_err)?,
+        None => League::new(run.clone()),
+    };
+    league.add(&run, &parsed).map_err(PyValueError::new_err)?;
+    let bootstrap = Bootstrap { reps: bootstrap.unwrap_or(Bootstrap::default().reps), ..Bootstrap::default() };
+    let summaries = league.summaries(&eval::Settings { reference: None, bootstrap }).map_err(PyValueError::new_err)?;
+    let table = league_markdown(&league, &summaries, &rank).map_err(PyValueError::new_err)?;
+    Ok((league.to_json(), table))
+}
+
 fn space_dict<'py>(py: Python<'py>, space: &Space) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
     match space {
@@ -544,6 +578,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Client>()?;
     m.add_class::<Env>()?;
     m.add_function(wrap_pyfunction!(eval_report, m)?)?;
+    m.add_function(wrap_pyfunction!(league_add, m)?)?;
     m.add("ArenaError", m.py().get_type::<ArenaError>())?;
     Ok(())
 }

@@ -168,6 +168,8 @@ def evaluate(
     quiet=False,
     reference=None,
     bootstrap=5000,
+    league=None,
+    rank="return",
     **env_kwargs,
 ) -> Evaluation:
     """Runs each policy for ``episodes`` episodes of each scenario; episode i is reset with
@@ -178,7 +180,10 @@ def evaluate(
     policy. ``out`` writes the tables and plots there (``Evaluation.write``); other
     keyword arguments go to each env (``action_type``, ``overrides``, ...). ``reference``
     names the policy the others are compared with seed by seed (default: the first);
-    ``bootstrap`` is the number of resamples of every interval but the rates'."""
+    ``bootstrap`` is the number of resamples of every interval but the rates'. ``league``:
+    a league file (JSON) to add the rows to, created if missing, refused (ValueError) when
+    its scenarios, seed, episode count or ``max_cycles`` differ; league.md, ranked by
+    ``rank``, is written beside it (docs/evaluation.md, "League")."""
     named = _named(policies)
     if reference is not None and reference not in [name for name, _ in named]:
         raise ValueError(f"reference {reference!r} is not one of the policies {[name for name, _ in named]}")
@@ -217,7 +222,29 @@ def evaluate(
     )
     if out is not None:
         result.write(out)
+    if league is not None:
+        _join_league(league, rows, scenarios, seed, episodes, max_cycles, rank, bootstrap)
     return result
+
+
+def _join_league(path, rows, scenarios, seed, episodes, max_cycles, rank, bootstrap) -> None:
+    """Adds the rows to the league file at ``path`` and writes league.md beside it."""
+    text = None
+    if os.path.exists(path):
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    try:
+        updated, table = _core.league_add(
+            text, rows, scenarios, int(seed), int(episodes), max_cycles, rank, int(bootstrap)
+        )
+    except ValueError as error:
+        raise ValueError(f"{path}: {error}") from None
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(updated)
+    with open(os.path.join(folder, "league.md"), "w", encoding="utf-8") as f:
+        f.write(table)
 
 
 def _run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs, bar) -> list:

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use arena_client::blocking::{Client, Env};
+use arena_client::eval::league::{League, LeagueSettings, league_markdown};
 use arena_client::eval::{self, Episode, Settings, Summary};
 use arena_client::stats::Bootstrap;
 use arena_client::{Action, CreateOptions, ScenarioSource};
@@ -57,6 +58,14 @@ pub struct EvalArgs {
     /// give the same table).
     #[arg(long, default_value_t = Bootstrap::default().reps)]
     bootstrap: usize,
+    /// A league file (JSON) to add this run's rows to, created if missing; refused when
+    /// its scenarios, seed, episode count or episode length differ. Writes league.md
+    /// beside it.
+    #[arg(long)]
+    league: Option<PathBuf>,
+    /// The figure league.md ranks by (a figure key: return, success, rms_safety, ...).
+    #[arg(long, default_value = "return")]
+    rank: String,
     /// Folder for results.md, results.csv, differences.csv, episodes.csv, results.json and the plots
     /// (created if missing).
     #[arg(long, default_value = "out/eval")]
@@ -106,6 +115,10 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if let Some(reference) = args.reference.as_ref().filter(|r| !args.policies.contains(r)) {
         anyhow::bail!("--reference {reference} is not one of the --policy values ({})", args.policies.join(", "));
     }
+    if eval::figure_index(&args.rank).is_none() {
+        let keys: Vec<&str> = eval::FIGURES.iter().map(|f| f.key).collect();
+        anyhow::bail!("--rank {} is not a figure ({})", args.rank, keys.join(", "));
+    }
     anyhow::ensure!(args.bootstrap >= 100, "--bootstrap must be at least 100 resamples, not {}", args.bootstrap);
     let (client, server) = crate::connect(&args.connection)?;
     let total = args.episodes.saturating_mul((policies.len() * args.scenarios.len()) as u64);
@@ -131,6 +144,36 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let summaries = eval::summarise(&episodes, &settings).map_err(anyhow::Error::msg)?;
     print!("{}", eval::markdown(&summaries));
     write(&args, &summaries, &episodes)?;
+    if let Some(path) = &args.league {
+        join_league(&args, path, &settings, &episodes)?;
+    }
+    Ok(())
+}
+
+/// Adds the run to the league file at `path` (a new league if there is none) and writes
+/// league.md beside it.
+fn join_league(args: &EvalArgs, path: &Path, settings: &Settings, episodes: &[Episode]) -> anyhow::Result<()> {
+    let run = LeagueSettings {
+        scenarios: args.scenarios.clone(),
+        seed: args.seed,
+        episodes: args.episodes,
+        max_cycles: args.max_cycles,
+    };
+    let mut league = match std::fs::read_to_string(path) {
+        Ok(text) => League::from_json(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => League::new(run.clone()),
+        Err(e) => return Err(anyhow::Error::new(e).context(format!("reading {}", path.display()))),
+    };
+    league.add(&run, episodes).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let summaries = league.summaries(&Settings { reference: None, ..settings.clone() }).map_err(anyhow::Error::msg)?;
+    let table = league_markdown(&league, &summaries, &args.rank).map_err(anyhow::Error::msg)?;
+    if let Some(folder) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(folder).with_context(|| format!("creating {}", folder.display()))?;
+    }
+    std::fs::write(path, league.to_json()).with_context(|| format!("writing {}", path.display()))?;
+    let md = path.with_file_name("league.md");
+    std::fs::write(&md, table).with_context(|| format!("writing {}", md.display()))?;
+    println!("league: {} and {}", path.display(), md.display());
     Ok(())
 }
 

@@ -135,3 +135,28 @@ fn bad_policies_scenarios_and_counts_are_refused_by_name() {
         assert!(!output.status.success() && stderr.contains(message), "{args:?}: {stderr}");
     }
 }
+
+#[test]
+fn a_league_accepts_a_run_of_its_settings_and_refuses_one_of_other_seeds() {
+    let harness = serve();
+    let out = out_dir("league");
+    let league = out.join("league.json");
+    let league_arg = league.to_str().expect("a UTF-8 path").to_string();
+    let base = ["--scenario", "merge-random", "--episodes", "2", "--max-cycles", "30", "--league", &league_arg];
+    let run = |policy: &str, seed: &str| {
+        let mut args = base.to_vec();
+        args.extend(["--policy", policy, "--seed", seed]);
+        eval(&harness, &out, &args)
+    };
+    let first = run("idle", "0");
+    assert!(first.status.success(), "{}", String::from_utf8_lossy(&first.stderr));
+    let second = run("random", "0");
+    assert!(second.status.success(), "{}", String::from_utf8_lossy(&second.stderr));
+    let table = std::fs::read_to_string(out.join("league.md")).expect("league.md written");
+    assert!(table.contains("| idle |") && table.contains("| random |"), "{table}");
+    let before = std::fs::read_to_string(&league).expect("the league file");
+    let refused = run("idm", "7");
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && stderr.contains("first seed 7, not the league's 0"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(&league).expect("the league file"), before, "a refused run changes nothing");
+}

@@ -1,0 +1,293 @@
+//! A league: evaluations that accumulate. A league file (JSON) holds the episodes of every
+//! policy ever added to it with the settings they were played under (scenarios, first
+//! seed, episode count, episode length); a run is added only when its settings are the
+//! file's, so every row of the league met the same episodes. Adding a policy the league
+//! already holds replaces its episodes (a re-evaluation). `league.md` ranks the policies
+//! of each scenario by one figure with its interval, from the same estimators as the
+//! tables (`summarise`).
+
+use std::fmt::Write as _;
+
+use serde::{Deserialize, Serialize};
+
+use super::{Episode, FIGURES, Settings, Summary, figure_index, summarise};
+
+/// The version of the league file's layout.
+pub const LEAGUE_VERSION: u32 = 1;
+
+/// What every run of a league must share.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LeagueSettings {
+    /// Scenario names, in the order the league shows them.
+    pub scenarios: Vec<String>,
+    /// Seed of the first episode.
+    pub seed: u64,
+    /// Episodes per policy and scenario.
+    pub episodes: u64,
+    /// Episode length in steps, when a run set it instead of each scenario's.
+    pub max_cycles: Option<u32>,
+}
+
+/// One episode as the file stores it (a figure that does not apply is null).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Stored {
+    policy: String,
+    scenario: String,
+    seed: u64,
+    agent: String,
+    end_reason: String,
+    figures: Vec<Option<f64>>,
+}
+
+/// The league file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct File {
+    version: u32,
+    settings: LeagueSettings,
+    episodes: Vec<Stored>,
+}
+
+/// A league: its settings and every episode of its policies.
+#[derive(Debug, Clone, PartialEq)]
+pub struct League {
+    /// What every run shares.
+    pub settings: LeagueSettings,
+    /// By scenario, then policy in the order they joined, then seed.
+    pub episodes: Vec<Episode>,
+}
+
+impl League {
+    /// An empty league of these settings.
+    pub fn new(settings: LeagueSettings) -> League {
+        League { settings, episodes: Vec::new() }
+    }
+
+    /// The league a file holds, or what is wrong with it.
+    pub fn from_json(text: &str) -> Result<League, String> {
+        let file: File = serde_json::from_str(text).map_err(|e| format!("not a league file: {e}"))?;
+        if file.version != LEAGUE_VERSION {
+            return Err(format!(
+                "a league file of version {}; this arena reads version {LEAGUE_VERSION}",
+                file.version
+            ));
+        }
+        let mut episodes = Vec::with_capacity(file.episodes.len());
+        for (k, e) in file.episodes.into_iter().enumerate() {
+            if e.figures.len() != FIGURES.len() {
+                return Err(format!("episode {k} has {} figures, not {}", e.figures.len(), FIGURES.len()));
+            }
+            let figures = e.figures.into_iter().map(|v| v.unwrap_or(f64::NAN)).collect();
+            let Stored { policy, scenario, seed, agent, end_reason, .. } = e;
+            episodes.push(Episode { policy, scenario, seed, agent, end_reason, figures });
+        }
+        Ok(League { settings: file.settings, episodes })
+    }
+
+    /// The league as a file.
+    pub fn to_json(&self) -> String {
+        let episodes = self
+            .episodes
+            .iter()
+            .map(|e| Stored {
+                policy: e.policy.clone(),
+                scenario: e.scenario.clone(),
+                seed: e.seed,
+                agent: e.agent.clone(),
+                end_reason: e.end_reason.clone(),
+                figures: e.figures.iter().map(|v| v.is_finite().then_some(*v)).collect(),
+            })
+            .collect();
+        let file = File { version: LEAGUE_VERSION, settings: self.settings.clone(), episodes };
+        serde_json::to_string_pretty(&file).unwrap_or_default() + "\n"
+    }
+
+    /// Adds a run played under `settings`: its policies join (or replace their earlier
+    /// episodes). Refused, naming each difference, when the settings are not the league's.
+    pub fn add(&mut self, settings: &LeagueSettings, episodes: &[Episode]) -> Result<(), String> {
+        let mine = &self.settings;
+        let mut differences = Vec::new();
+        let mut sorted = (mine.scenarios.clone(), settings.scenarios.clone());
+        sorted.0.sort();
+        sorted.1.sort();
+        if sorted.0 != sorted.1 {
+            differences.push(format!("scenarios {:?}, not the league's {:?}", settings.scenarios, mine.scenarios));
+        }
+        if settings.seed != mine.seed {
+            differences.push(format!("first seed {}, not the league's {}", settings.seed, mine.seed));
+        }
+        if settings.episodes != mine.episodes {
+            differences.push(format!("{} episodes, not the league's {}", settings.episodes, mine.episodes));
+        }
+        if settings.max_cycles != mine.max_cycles {
+            let show = |m: Option<u32>| m.map_or("each scenario's".to_string(), |n| n.to_string());
+            differences.push(format!(
+                "episode length {}, not the league's {}",
+                show(settings.max_cycles),
+                show(mine.max_cycles)
+            ));
+        }
+        if !differences.is_empty() {
+            return Err(format!(
+                "this run cannot join the league: its rows would not have met the same episodes ({})",
+                differences.join("; ")
+            ));
+        }
+        let joining: Vec<&str> = episodes.iter().map(|e| e.policy.as_str()).collect();
+        self.episodes.retain(|e| !joining.contains(&e.policy.as_str()));
+        self.episodes.extend(episodes.iter().cloned());
+        let order = |scenario: &str| mine.scenarios.iter().position(|s| s == scenario).unwrap_or(usize::MAX);
+        // Stable: policies keep the order they joined in within a scenario.
+        self.episodes.sort_by_key(|e| order(&e.scenario));
+        Ok(())
+    }
+
+    /// The league's summaries (`summarise`).
+    pub fn summaries(&self, settings: &Settings) -> Result<Vec<Summary>, String> {
+        summarise(&self.episodes, settings)
+    }
+}
+
+/// The value a league ranks by: a rate's mean, another figure's IQM.
+fn ranked_value(summary: &Summary, k: usize) -> (f64, f64, f64) {
+    let e = &summary.figures[k].1;
+    match e.iqm {
+        Some(i) => (i.value, i.low, i.high),
+        None => (e.mean, e.low, e.high),
+    }
+}
+
+/// `league.md`: per scenario, the policies ranked by figure `rank` (best first by the
+/// figure's better side; a rate by its mean with its Wilson interval, another figure by
+/// its IQM with its bootstrap interval), beside success, at-fault collisions and return.
+pub fn league_markdown(league: &League, summaries: &[Summary], rank: &str) -> Result<String, String> {
+    let k = figure_index(rank).ok_or_else(|| {
+        let keys: Vec<&str> = FIGURES.iter().map(|f| f.key).collect();
+        format!("unknown figure '{rank}' to rank by (figures: {})", keys.join(", "))
+    })?;
+    let figure = &FIGURES[k];
+    let sign = match figure.better {
+        super::Better::Higher => -1.0,
+        super::Better::Lower => 1.0,
+        super::Better::Neither => return Err(format!("'{rank}' has no better side to rank by")),
+    };
+    let s = &league.settings;
+    let mut out = format!(
+        "# League\n\n{} episodes per policy and scenario, seeds {}..{}{}, every policy on the same episodes; ranked \
+         by {} ({}), best first. Rates: mean [95 % Wilson]; other figures: IQM [95 % bootstrap].\n",
+        s.episodes,
+        s.seed,
+        s.seed.saturating_add(s.episodes.saturating_sub(1)),
+        s.max_cycles.map_or(String::new(), |n| format!(", {n} steps per episode")),
+        figure.heading,
+        if sign < 0.0 { "higher is better" } else { "lower is better" },
+    );
+    let shown = ["success", "at_fault", "return"].map(|key| figure_index(key).unwrap_or(0));
+    for scenario in &s.scenarios {
+        let mut rows: Vec<&Summary> = summaries.iter().filter(|x| &x.scenario == scenario).collect();
+        if rows.is_empty() {
+            continue;
+        }
+        rows.sort_by(|a, b| (sign * ranked_value(a, k).0).total_cmp(&(sign * ranked_value(b, k).0)));
+        let _ = write!(out, "\n## {scenario}\n\n| rank | policy | {} |", figure.heading);
+        for &j in &shown {
+            let _ = write!(out, " {} |", FIGURES[j].heading);
+        }
+        out.push_str("\n|---:|---|---:|---:|---:|---:|\n");
+        for (place, row) in rows.iter().enumerate() {
+            let _ = write!(out, "| {} | {} |", place + 1, row.policy);
+            for j in std::iter::once(k).chain(shown) {
+                let (value, low, high) = ranked_value(row, j);
+                let cell = if FIGURES[j].rate {
+                    format!("{:.0} % [{:.0}, {:.0}]", value * 100.0, low * 100.0, high * 100.0)
+                } else if row.distinct == 1 || low == high {
+                    format!("{value:.3}")
+                } else {
+                    format!("{value:.3} [{low:.3}, {high:.3}]")
+                };
+                let _ = write!(out, " {cell} |");
+            }
+            out.push('\n');
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings(seed: u64) -> LeagueSettings {
+        LeagueSettings { scenarios: vec!["s".into()], seed, episodes: 3, max_cycles: None }
+    }
+
+    fn run(policy: &str, ret: f64) -> Vec<Episode> {
+        (0..3)
+            .map(|seed| Episode {
+                policy: policy.into(),
+                scenario: "s".into(),
+                seed,
+                agent: "a".into(),
+                end_reason: "time_limit".into(),
+                figures: vec![
+                    1.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    f64::NAN,
+                    20.0,
+                    5.0,
+                    f64::NAN,
+                    1.0,
+                    1.0,
+                    1.0,
+                    ret + seed as f64,
+                    2.0,
+                    3.0,
+                ],
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_run_whose_seeds_differ_is_refused_and_one_that_matches_joins() {
+        let mut league = League::new(settings(0));
+        league.add(&settings(0), &run("a", 10.0)).expect("the first run joins");
+        let refused = league.add(&settings(5), &run("b", 20.0)).expect_err("other seeds");
+        assert!(refused.contains("first seed 5, not the league's 0"), "{refused}");
+        let longer = LeagueSettings { max_cycles: Some(40), episodes: 4, ..settings(0) };
+        let refused = league.add(&longer, &run("b", 20.0)).expect_err("other settings");
+        assert!(
+            refused.contains("4 episodes, not the league's 3") && refused.contains("episode length 40"),
+            "{refused}"
+        );
+        assert_eq!(league.episodes.len(), 3, "a refused run adds nothing");
+        league.add(&settings(0), &run("b", 20.0)).expect("matching settings join");
+        assert_eq!(league.episodes.len(), 6);
+        // Re-evaluating a policy replaces its episodes.
+        league.add(&settings(0), &run("a", 30.0)).expect("a again");
+        assert_eq!(league.episodes.len(), 6);
+        let summaries = league.summaries(&Settings::default()).expect("summaries");
+        let table = league_markdown(&league, &summaries, "return").expect("a table");
+        let (first_a, first_b) = (table.find("| a |").expect("a ranked"), table.find("| b |").expect("b ranked"));
+        assert!(first_a < first_b, "a (31 on average) ranks above b (21): {table}");
+        assert!(table.contains("| 1 | a | 31.000"), "{table}");
+    }
+
+    #[test]
+    fn a_league_survives_its_file_bit_for_bit() {
+        let mut league = League::new(settings(0));
+        league.add(&settings(0), &run("a", 10.0)).expect("joins");
+        let text = league.to_json();
+        let back = League::from_json(&text).expect("reads back");
+        assert_eq!(back.to_json(), text);
+        assert_eq!(back.episodes[0].figures[11].to_bits(), league.episodes[0].figures[11].to_bits());
+        assert!(back.episodes[0].figures[4].is_nan(), "a figure that does not apply stays NaN");
+        assert!(League::from_json("{}").expect_err("not a league").contains("not a league file"));
+        let future = text.replace("\"version\": 1", "\"version\": 9");
+        assert!(League::from_json(&future).expect_err("newer").contains("version 9"));
+        let summaries = back.summaries(&Settings::default()).expect("summaries");
+        let error = league_markdown(&back, &summaries, "t_c").expect_err("no better side");
+        assert!(error.contains("no better side"), "{error}");
+        assert!(league_markdown(&back, &summaries, "speedy").expect_err("unknown").contains("unknown figure 'speedy'"));
+    }
+}

@@ -318,6 +318,17 @@ fn info_from_dict(dict: &Bound<'_, PyDict>) -> PyResult<Info> {
     Ok(Info { values })
 }
 
+/// An evaluation's rows (policy, scenario, seed, agent, the agent's last info) as episodes.
+fn episodes_of(rows: Vec<(String, String, u64, String, Bound<'_, PyDict>)>) -> PyResult<Vec<eval::Episode>> {
+    let mut episodes = Vec::with_capacity(rows.len());
+    for (policy, scenario, seed, agent, info) in rows {
+        let info = info_from_dict(&info)?;
+        episodes
+            .push(eval::Episode::from_info(&policy, &scenario, seed, &agent, &info).map_err(PyValueError::new_err)?);
+    }
+    Ok(episodes)
+}
+
 /// The tables of evaluated episodes, as `arena eval` writes them (`arena_client::eval`):
 /// `rows` are (policy, scenario, seed, agent, the agent's last info); returns (Markdown
 /// table, summary CSV, paired differences CSV, episodes CSV, JSON); `reference` is the
@@ -329,13 +340,7 @@ fn eval_report(
     reference: Option<String>,
     bootstrap: Option<usize>,
 ) -> PyResult<(String, String, String, String, String)> {
-    let mut episodes = Vec::with_capacity(rows.len());
-    for (policy, scenario, seed, agent, info) in rows {
-        let info = info_from_dict(&info)?;
-        let episode =
-            eval::Episode::from_info(&policy, &scenario, seed, &agent, &info).map_err(PyValueError::new_err)?;
-        episodes.push(episode);
-    }
+    let episodes = episodes_of(rows)?;
     let bootstrap = Bootstrap { reps: bootstrap.unwrap_or(Bootstrap::default().reps), ..Bootstrap::default() };
     let settings = eval::Settings { reference, bootstrap };
     let summaries = eval::summarise(&episodes, &settings).map_err(PyValueError::new_err)?;
@@ -365,11 +370,7 @@ fn league_add(
     bootstrap: Option<usize>,
 ) -> PyResult<(String, String)> {
     use arena_client::eval::league::{League, LeagueSettings, league_markdown};
-    let mut parsed = Vec::with_capacity(rows.len());
-    for (policy, scenario, seed, agent, info) in rows {
-        let info = info_from_dict(&info)?;
-        parsed.push(eval::Episode::from_info(&policy, &scenario, seed, &agent, &info).map_err(PyValueError::new_err)?);
-    }
+    let parsed = episodes_of(rows)?;
     let run = LeagueSettings { scenarios, seed, episodes, max_cycles };
     let mut league = match league {
         Some(text) => League::from_json(&text).map_err(PyValueError::new_err)?,

@@ -93,6 +93,8 @@ def test_a_league_gathers_python_policies_and_refuses_other_seeds(tmp_path):
 
 
 def test_bad_input_is_refused_by_name():
+    with pytest.raises(ValueError, match="bootstrap must be a whole number of resamples, at least 100"):
+        highway_arena.evaluate(["idle"], ["merge"], episodes=1, bootstrap=10, quiet=True)
     with pytest.raises(ValueError, match="reference 'ppo' is not one of the policies"):
         highway_arena.evaluate(["idle"], ["merge"], episodes=1, reference="ppo", quiet=True)
     with pytest.raises(ValueError, match="unknown built-in policy 'gt:calm:nash'"):

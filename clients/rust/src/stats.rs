@@ -130,8 +130,8 @@ impl Default for Bootstrap {
 impl Bootstrap {
     /// The intervals of `K` statistics computed together on each resample: `statistics`
     /// gets the resample's values (stratum after stratum, each sorted ascending within
-    /// its stratum when `sort` holds, as every order statistic needs) and returns the K
-    /// figures. The point estimates are the statistics of the data itself.
+    /// its stratum, so that one stratum's order statistics need no sort of their own) and
+    /// returns the K figures. The point estimates are the statistics of the data itself.
     pub fn intervals<const K: usize>(
         &self,
         strata: &[Vec<f64>],

@@ -185,6 +185,8 @@ def evaluate(
     its scenarios, seed, episode count or ``max_cycles`` differ; league.md, ranked by
     ``rank``, is written beside it (docs/evaluation.md, "League")."""
     named = _named(policies)
+    if isinstance(bootstrap, bool) or not isinstance(bootstrap, int) or bootstrap < 100:
+        raise ValueError(f"bootstrap must be a whole number of resamples, at least 100 (default 5000), not {bootstrap!r}")
     if reference is not None and reference not in [name for name, _ in named]:
         raise ValueError(f"reference {reference!r} is not one of the policies {[name for name, _ in named]}")
     scenarios = [scenarios] if isinstance(scenarios, str) else list(scenarios)

@@ -10,6 +10,7 @@ use std::fmt::Write as _;
 
 use serde::{Deserialize, Serialize};
 
+use super::tables::{number, percent};
 use super::{Episode, FIGURES, Settings, Summary, figure_index, summarise};
 
 /// The version of the league file's layout.
@@ -128,7 +129,8 @@ impl League {
         }
         if !differences.is_empty() {
             return Err(format!(
-                "this run cannot join the league: its rows would not have met the same episodes ({})",
+                "this run cannot join the league: its rows would not have met the same episodes ({}); run it with \
+                 the league's settings, or give it a league file of its own",
                 differences.join("; ")
             ));
         }
@@ -197,12 +199,11 @@ pub fn league_markdown(league: &League, summaries: &[Summary], rank: &str) -> Re
             let _ = write!(out, "| {} | {} |", place + 1, row.policy);
             for j in std::iter::once(k).chain(shown) {
                 let (value, low, high) = ranked_value(row, j);
-                let cell = if FIGURES[j].rate {
-                    format!("{:.0} % [{:.0}, {:.0}]", value * 100.0, low * 100.0, high * 100.0)
-                } else if row.distinct == 1 || low == high {
-                    format!("{value:.3}")
+                let show = if FIGURES[j].rate { |v: f64| format!("{} %", percent(v)) } else { number };
+                let cell = if row.distinct == 1 || low == high {
+                    show(value)
                 } else {
-                    format!("{value:.3} [{low:.3}, {high:.3}]")
+                    format!("{} [{}, {}]", show(value), show(low), show(high))
                 };
                 let _ = write!(out, " {cell} |");
             }
@@ -270,7 +271,7 @@ mod tests {
         let table = league_markdown(&league, &summaries, "return").expect("a table");
         let (first_a, first_b) = (table.find("| a |").expect("a ranked"), table.find("| b |").expect("b ranked"));
         assert!(first_a < first_b, "a (31 on average) ranks above b (21): {table}");
-        assert!(table.contains("| 1 | a | 31.000"), "{table}");
+        assert!(table.contains("| 1 | a | 31.0 [30.0, 32.0]"), "{table}");
     }
 
     #[test]

@@ -10,7 +10,7 @@ use super::{Difference, Episode, Estimate, FIGURES, Figure, Summary};
 use crate::stats::Interval;
 
 /// A number with three significant digits, in scientific notation beyond 1e5 or below 1e-3.
-fn number(v: f64) -> String {
+pub(super) fn number(v: f64) -> String {
     if !v.is_finite() {
         return if v.is_nan() { "-".into() } else { format!("{v}") };
     }
@@ -25,7 +25,7 @@ fn number(v: f64) -> String {
     format!("{v:.decimals$}")
 }
 
-fn percent(v: f64) -> String {
+pub(super) fn percent(v: f64) -> String {
     format!("{:.0}", v * 100.0)
 }
 

@@ -182,7 +182,7 @@ def evaluate(
     names the policy the others are compared with seed by seed (default: the first);
     ``bootstrap`` is the number of resamples of every interval but the rates'. ``league``:
     a league file (JSON) to add the rows to, created if missing, refused (ValueError) when
-    its scenarios, seed, episode count or ``max_cycles`` differ; league.md, ranked by
+    its seed, episode count or ``max_cycles`` differ (new scenarios join); league.md, ranked by
     ``rank``, is written beside it (docs/evaluation.md, "League")."""
     named = _named(policies)
     if isinstance(bootstrap, bool) or not isinstance(bootstrap, int) or bootstrap < 100:

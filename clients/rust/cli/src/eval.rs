@@ -59,7 +59,7 @@ pub struct EvalArgs {
     #[arg(long, default_value_t = Bootstrap::default().reps)]
     bootstrap: usize,
     /// A league file (JSON) to add this run's rows to, created if missing; refused when
-    /// its scenarios, seed, episode count or episode length differ. Writes league.md
+    /// its seed, episode count or episode length differ (new scenarios join). Writes league.md
     /// beside it.
     #[arg(long)]
     league: Option<PathBuf>,

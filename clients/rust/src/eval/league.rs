@@ -1,8 +1,10 @@
 //! A league: evaluations that accumulate. A league file (JSON) holds the episodes of every
-//! policy ever added to it with the settings they were played under (scenarios, first
-//! seed, episode count, episode length); a run is added only when its settings are the
-//! file's, so every row of the league met the same episodes. Adding a policy the league
-//! already holds replaces its episodes (a re-evaluation). `league.md` ranks the policies
+//! policy ever added to it with the settings they were played under (first seed, episode
+//! count, episode length) and the scenarios played; a run is added only when its
+//! settings are the file's, so every row of a scenario met the same episodes. A run may
+//! bring scenarios the league has not seen (they join its list: a policy trained for one
+//! scenario is ranked on that one only). Adding a policy the league already holds on a
+//! scenario replaces its episodes there (a re-evaluation). `league.md` ranks the policies
 //! of each scenario by one figure with its interval, from the same estimators as the
 //! tables (`summarise`).
 
@@ -19,7 +21,8 @@ pub const LEAGUE_VERSION: u32 = 1;
 /// What every run of a league must share.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct LeagueSettings {
-    /// Scenario names, in the order the league shows them.
+    /// Scenario names, in the order the league shows them (a league's list grows as runs
+    /// bring scenarios; a run's list is the scenarios it played).
     pub scenarios: Vec<String>,
     /// Seed of the first episode.
     pub seed: u64,
@@ -102,17 +105,13 @@ impl League {
         serde_json::to_string_pretty(&file).unwrap_or_default() + "\n"
     }
 
-    /// Adds a run played under `settings`: its policies join (or replace their earlier
-    /// episodes). Refused, naming each difference, when the settings are not the league's.
+    /// Adds a run played under `settings`: its policies join on its scenarios (or replace
+    /// their earlier episodes there), and scenarios new to the league join its list.
+    /// Refused, naming each difference, when the seeds, episode count or length are not
+    /// the league's.
     pub fn add(&mut self, settings: &LeagueSettings, episodes: &[Episode]) -> Result<(), String> {
         let mine = &self.settings;
         let mut differences = Vec::new();
-        let mut sorted = (mine.scenarios.clone(), settings.scenarios.clone());
-        sorted.0.sort();
-        sorted.1.sort();
-        if sorted.0 != sorted.1 {
-            differences.push(format!("scenarios {:?}, not the league's {:?}", settings.scenarios, mine.scenarios));
-        }
         if settings.seed != mine.seed {
             differences.push(format!("first seed {}, not the league's {}", settings.seed, mine.seed));
         }
@@ -134,9 +133,15 @@ impl League {
                 differences.join("; ")
             ));
         }
-        let joining: Vec<&str> = episodes.iter().map(|e| e.policy.as_str()).collect();
-        self.episodes.retain(|e| !joining.contains(&e.policy.as_str()));
+        for scenario in settings.scenarios.iter().chain(episodes.iter().map(|e| &e.scenario)) {
+            if !self.settings.scenarios.contains(scenario) {
+                self.settings.scenarios.push(scenario.clone());
+            }
+        }
+        let joining = |e: &Episode| episodes.iter().any(|j| j.policy == e.policy && j.scenario == e.scenario);
+        self.episodes.retain(|e| !joining(e));
         self.episodes.extend(episodes.iter().cloned());
+        let mine = &self.settings;
         let order = |scenario: &str| mine.scenarios.iter().position(|s| s == scenario).unwrap_or(usize::MAX);
         // Stable: policies keep the order they joined in within a scenario.
         self.episodes.sort_by_key(|e| order(&e.scenario));
@@ -267,11 +272,19 @@ mod tests {
         // Re-evaluating a policy replaces its episodes.
         league.add(&settings(0), &run("a", 30.0)).expect("a again");
         assert_eq!(league.episodes.len(), 6);
+        // A policy of another scenario joins there only, and the scenario joins the list.
+        let other: Vec<Episode> = run("a", 50.0).into_iter().map(|e| Episode { scenario: "t".into(), ..e }).collect();
+        let on_t = LeagueSettings { scenarios: vec!["t".into()], ..settings(0) };
+        league.add(&on_t, &other).expect("another scenario joins");
+        assert_eq!(league.settings.scenarios, ["s", "t"]);
+        assert_eq!(league.episodes.len(), 9, "a's episodes on s stay beside its new ones on t");
         let summaries = league.summaries(&Settings::default()).expect("summaries");
         let table = league_markdown(&league, &summaries, "return").expect("a table");
         let (first_a, first_b) = (table.find("| a |").expect("a ranked"), table.find("| b |").expect("b ranked"));
         assert!(first_a < first_b, "a (31 on average) ranks above b (21): {table}");
         assert!(table.contains("| 1 | a | 31.0 [30.0, 32.0]"), "{table}");
+        let t = table.find("## t").expect("t has its own ranking");
+        assert!(table[t..].contains("| 1 | a | 51.0 [50.0, 52.0]") && !table[t..].contains("| b |"), "{table}");
     }
 
     #[test]

@@ -17,6 +17,7 @@ settings do not learn merge-random or overtake-random in 300 000 steps yet
 from __future__ import annotations
 
 import argparse
+import json
 import time
 
 from stable_baselines3 import PPO
@@ -27,9 +28,22 @@ import highway_arena
 from highway_arena.sb3 import vec_env
 
 
-def report(when: str, model, scenario: str, connect: str, episodes: int) -> None:
+def parse_override(text: str) -> tuple[str, object]:
+    """KEY=VALUE, the value read as JSON (numbers, true/false) or else kept as text."""
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        raise SystemExit(f"--override {text!r}: expected KEY=VALUE, e.g. reward.risk_weight=0")
+    try:
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value
+
+
+def report(when: str, model, scenario: str, connect: str, episodes: int, overrides: dict) -> None:
     """The policy on held-out seeds (10 000 on), measured as arena eval measures."""
-    result = highway_arena.evaluate({"ppo": model}, scenario, episodes, seed=10_000, connect=connect, quiet=True)
+    result = highway_arena.evaluate(
+        {"ppo": model}, scenario, episodes, seed=10_000, connect=connect, quiet=True, overrides=overrides
+    )
     figures = result.summary(scenario, "ppo")
     rates = ", ".join(f"{key} {figures[key]['mean']:.0%}" for key in ("success", "collision", "off_road"))
     print(f"{when}: mean return {figures['return']['mean']:.1f}, {rates} ({episodes} episodes)", flush=True)
@@ -44,19 +58,27 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes (default 10)")
     parser.add_argument("--save", help="write the trained model to this .zip file")
     parser.add_argument("--no-normalize", action="store_true", help="train on the raw rewards (no VecNormalize)")
+    parser.add_argument(
+        "--override",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scenario override for training and evaluation, e.g. reward.risk_weight=0 (repeatable)",
+    )
     args = parser.parse_args()
+    overrides = dict(parse_override(text) for text in args.override)
 
     def run(connect: str) -> None:
-        vec = vec_env(args.scenario, num_envs=args.envs, connect=connect)
+        vec = vec_env(args.scenario, num_envs=args.envs, connect=connect, overrides=overrides)
         if not args.no_normalize:
             vec = VecNormalize(vec, norm_obs=False, norm_reward=True)
         set_random_seed(0)
         model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, seed=0, verbose=0)
-        report("before training", model, args.scenario, connect, args.episodes)
+        report("before training", model, args.scenario, connect, args.episodes, overrides)
         started = time.perf_counter()
         model.learn(total_timesteps=args.timesteps, progress_bar=False)
         seconds = time.perf_counter() - started
-        report(f"after {args.timesteps} steps ({seconds:.0f} s)", model, args.scenario, connect, args.episodes)
+        report(f"after {args.timesteps} steps ({seconds:.0f} s)", model, args.scenario, connect, args.episodes, overrides)
         if args.save:
             model.save(args.save)
         vec.close()

@@ -507,8 +507,14 @@ impl World {
             return Vec::new();
         }
         // On rayon's pool, built once for the process: a thread spawned per control period
-        // cost as much as a decision. A panic in a decision surfaces on this thread.
-        let chunk = gt.len().div_ceil(self.decision_threads);
+        // cost as much as a decision. A panic in a decision surfaces on this thread. Car by
+        // car when every thread of the pool may decide, so a car with two side games does
+        // not hold up a part of cars with none; otherwise one part per allowed thread.
+        let chunk = if self.decision_threads >= rayon::current_num_threads() {
+            1
+        } else {
+            gt.len().div_ceil(self.decision_threads)
+        };
         gt.par_chunks(chunk).flat_map_iter(|part| part.iter().map(|&i| (i, self.decide_one(i)))).collect()
     }
 

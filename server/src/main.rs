@@ -9,6 +9,13 @@ use arena_protocol::session::{ConnectionFlags, Mode, Role, guard_server_keys};
 use arena_server::transport::{Limits, Scenarios, Server};
 use clap::Parser;
 
+/// mimalloc: the game-theoretic cars' decisions allocate and free small buffers on two
+/// threads at once, where glibc's malloc took 12 % of a highway-gt step
+/// (docs/performance.md, "Issue 25, second round"). `transport::memory` hands its freed
+/// pages back.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// Hosts highway-arena envs over Zenoh. With no flags it listens as a Zenoh peer on
 /// tcp/127.0.0.1:7447 with multicast scouting off; clients connect to that endpoint.
 #[derive(Debug, Parser)]
@@ -49,22 +56,7 @@ macro_rules! say {
     }};
 }
 
-/// At most two malloc arenas (glibc) unless MALLOC_ARENA_MAX says otherwise: Zenoh starts
-/// a thread per connecting client for a while, and glibc would give each its own arena
-/// and keep it for good, so the server would grow with every burst of clients. Must run
-/// before any thread starts.
-fn limit_malloc_arenas() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    if std::env::var_os("MALLOC_ARENA_MAX").is_none() {
-        // SAFETY: mallopt only sets an allocator option; called before other threads exist.
-        unsafe {
-            libc::mallopt(libc::M_ARENA_MAX, 2);
-        }
-    }
-}
-
 fn main() -> anyhow::Result<()> {
-    limit_malloc_arenas();
     let mut args = Args::parse();
     if !(args.idle_timeout.is_finite() && args.idle_timeout > 0.0) {
         anyhow::bail!("--idle-timeout must be a positive number of seconds, not {}", args.idle_timeout);

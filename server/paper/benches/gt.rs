@@ -4,7 +4,8 @@
 //! gives the means; a second pass times single calls and prints p50 / p99 / max, the
 //! figures docs/performance.md records. Then the AV step in traffic: every gt car of
 //! highway-gt.toml, planned from the world as it is every second from 5 to 24 s (issue
-//! 25's target: p50 about 20 us on one core).
+//! 25's target: p50 about 20 us on one core), and the whole highway-gt world on one
+//! decision thread (ms per simulated second: the mean that throughput follows).
 //!
 //! Run: `cargo bench -p arena-paper --bench gt`
 
@@ -17,6 +18,10 @@ use arena_sim::Style;
 use arena_sim::{Game, GtDriver, GtParams, Mpc, expert_decision, plan, plan_motion};
 use arena_sim::{Scene, VehicleId, builtin_scenario};
 use criterion::Criterion;
+
+/// arena-server's allocator (its `transport::memory`), so the figures are the server's.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 /// Scenario B's initial scene, EC's id and its driver.
 fn scenario_b(game: Game) -> (Scene, VehicleId, GtDriver) {
@@ -61,8 +66,10 @@ fn percentiles(name: &str, n: usize, mut f: impl FnMut()) {
         .collect();
     times.sort();
     let at = |q: f64| times[((n as f64 * q) as usize).min(n - 1)];
+    let mean = times.iter().sum::<Duration>().as_secs_f64() / n as f64;
     println!(
-        "{name:<22} p50 {:>8.1} us  p99 {:>8.1} us  max {:>8.1} us  ({n} calls)",
+        "{name:<22} mean {:>7.1} us  p50 {:>8.1} us  p99 {:>8.1} us  max {:>8.1} us  ({n} calls)",
+        mean * 1e6,
         at(0.5).as_secs_f64() * 1e6,
         at(0.99).as_secs_f64() * 1e6,
         times[n - 1].as_secs_f64() * 1e6
@@ -149,10 +156,30 @@ the AV step in traffic (highway-gt.toml, seed 0, every gt car at 5..24 s):"
     });
 }
 
+/// The whole highway-gt world (50 cars, 8 gt) on `threads` decision threads: wall ms per
+/// simulated second over seconds 5..25 of seeds 0..3, the figure throughput follows (a
+/// mean, where the single-call figures above are percentiles).
+fn world_rate(threads: usize) {
+    let scenario = builtin_scenario("highway-gt").expect("highway-gt is built in").expect("it validates");
+    let mut elapsed = Duration::ZERO;
+    for seed in 0..3 {
+        let mut world = scenario.build(seed);
+        world.set_decision_threads(threads);
+        world.advance(5.0);
+        let start = Instant::now();
+        world.advance(20.0);
+        elapsed += start.elapsed();
+    }
+    let per_second = elapsed.as_secs_f64() * 1e3 / 60.0;
+    println!("world, {threads} thread(s)     {per_second:>7.2} ms per simulated s (highway-gt, seeds 0..3, 5..25 s)");
+}
+
 fn main() {
     let mut criterion = Criterion::default().configure_from_args();
     bench(&mut criterion);
     criterion.final_summary();
     tails();
     traffic();
+    world_rate(1);
+    world_rate(2);
 }

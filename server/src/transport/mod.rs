@@ -5,7 +5,7 @@
 //! client never showed a token.
 //! Closing drains: the requests being answered finish and are replied to; later ones are
 //! told `ShuttingDown` at once, so no client waits out its timeout on a server that left.
-//! Memory freed when clients leave is handed back to the system here (`malloc_trim`).
+//! Memory freed when clients leave is handed back to the system here (`memory::return_freed_memory`).
 
 mod limits;
 mod memory;

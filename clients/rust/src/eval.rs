@@ -12,6 +12,7 @@ use serde::Serialize;
 
 use crate::stats::{self, Bootstrap, Interval};
 
+pub mod crossplay;
 pub mod league;
 mod tables;
 pub use tables::{csv, differences_csv, episodes_csv, json, markdown};

@@ -10,11 +10,11 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use arena_client::blocking::{Client, Env};
 use arena_client::eval::league::{League, LeagueSettings, league_markdown};
-use arena_client::eval::{self, Episode, Settings, Summary};
+use arena_client::eval::{self, Episode, Settings, Summary, crossplay};
 use arena_client::stats::Bootstrap;
 use arena_client::{Action, CreateOptions, ScenarioSource};
 use arena_protocol::session::ConnectionFlags;
-use arena_protocol::{BuiltinPolicy, MetaAction, Space};
+use arena_protocol::{BuiltinPolicy, MetaAction, OptionValue, Space};
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -63,6 +63,12 @@ pub struct EvalArgs {
     /// beside it.
     #[arg(long)]
     league: Option<PathBuf>,
+    /// Cross-play: every policy against every opponent the AV can be (gt:<style>:<game>
+    /// for the three styles and two games, and idm) on the same seeds; writes
+    /// crossplay.md and a heatmap per scenario and figure (success, at fault, return).
+    /// The opponents are the scenario's cars driven by gt and its [traffic] gt cars.
+    #[arg(long)]
+    opponents: bool,
     /// The figure league.md ranks by (a figure key: return, success, rms_safety, ...).
     #[arg(long, default_value = "return")]
     rank: String,
@@ -121,7 +127,13 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     }
     anyhow::ensure!(args.bootstrap >= 100, "--bootstrap must be at least 100 resamples, not {}", args.bootstrap);
     let (client, server) = crate::connect(&args.connection)?;
-    let total = args.episodes.saturating_mul((policies.len() * args.scenarios.len()) as u64);
+    anyhow::ensure!(
+        !(args.opponents && args.league.is_some()),
+        "--opponents and --league cannot be combined: a league ranks policies against each scenario's own opponents"
+    );
+    let opponents = if args.opponents { crossplay::opponents() } else { vec![] };
+    let cells = opponents.len().max(1);
+    let total = args.episodes.saturating_mul((policies.len() * args.scenarios.len() * cells) as u64);
     let bar = ProgressBar::new(total).with_style(
         ProgressStyle::with_template("{msg:32} [{bar:30}] {pos}/{len} episodes, {elapsed} (eta {eta})")
             .map_err(|e| anyhow::anyhow!("progress bar template: {e}"))?
@@ -130,20 +142,38 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let mut episodes = Vec::new();
     for scenario in &args.scenarios {
         for (name, policy) in &policies {
-            bar.set_message(format!("{scenario} / {name}"));
-            let run = Run { client: &client, server: &server, scenario, name, policy: *policy, args: &args };
-            episodes.extend(run.episodes(&bar)?);
+            let against: Vec<Option<&crossplay::Opponent>> =
+                if opponents.is_empty() { vec![None] } else { opponents.iter().map(Some).collect() };
+            for opponent in against {
+                let row = opponent.map_or(name.clone(), |o| crossplay::row_name(name, &o.name));
+                bar.set_message(format!("{scenario} / {row}"));
+                let overrides = opponent.map_or(vec![], |o| o.overrides.clone());
+                let run = Run {
+                    client: &client,
+                    server: &server,
+                    scenario,
+                    name: &row,
+                    policy: *policy,
+                    overrides,
+                    args: &args,
+                };
+                episodes.extend(run.episodes(&bar)?);
+            }
         }
     }
     bar.finish_and_clear();
     client.close()?;
-    let settings = Settings {
-        reference: args.reference.clone(),
-        bootstrap: Bootstrap { reps: args.bootstrap, ..Bootstrap::default() },
+    let reference = match (&args.reference, opponents.first()) {
+        (Some(reference), Some(first)) => Some(crossplay::row_name(reference, &first.name)),
+        (reference, _) => reference.clone(),
     };
+    let settings = Settings { reference, bootstrap: Bootstrap { reps: args.bootstrap, ..Bootstrap::default() } };
     let summaries = eval::summarise(&episodes, &settings).map_err(anyhow::Error::msg)?;
     print!("{}", eval::markdown(&summaries));
     write(&args, &summaries, &episodes)?;
+    if args.opponents {
+        write_crossplay(&args, &summaries)?;
+    }
     if let Some(path) = &args.league {
         join_league(&args, path, &settings, &episodes)?;
     }
@@ -184,6 +214,8 @@ struct Run<'a> {
     scenario: &'a str,
     name: &'a str,
     policy: Policy,
+    /// Create overrides (the opponents of a cross-play cell).
+    overrides: Vec<(String, String)>,
     args: &'a EvalArgs,
 }
 
@@ -199,6 +231,7 @@ impl Run<'_> {
     /// Every episode of the run, in seed order, `args.batch` envs at a time.
     fn episodes(&self, bar: &ProgressBar) -> anyhow::Result<Vec<Episode>> {
         let options = CreateOptions {
+            overrides: self.overrides.iter().map(|(k, v)| (k.clone(), OptionValue::Str(v.clone()))).collect(),
             max_cycles: self.args.max_cycles,
             policy: match self.policy {
                 Policy::Server(policy) => Some(policy),
@@ -310,6 +343,30 @@ fn write(args: &EvalArgs, summaries: &[Summary], episodes: &[Episode]) -> anyhow
         plots::rates(&out.join(format!("rates_{scenario}.png")), scenario, summaries)?;
     }
     println!("written: {}", written(out, &args.scenarios));
+    Ok(())
+}
+
+/// crossplay.md (every matrix) and crossplay_<scenario>_<figure>.png (each as a heatmap).
+fn write_crossplay(args: &EvalArgs, summaries: &[Summary]) -> anyhow::Result<()> {
+    let out = &args.out;
+    let text = format!(
+        "# arena eval --opponents\n\n{} episodes per cell, seeds {}..{}, the same in every cell. Rows: the policy \
+         evaluated; columns: who drives its opponents (the scenario's gt vehicles and gt traffic). Rates: mean \
+         and 95 % Wilson interval; return: IQM and 95 % bootstrap interval.\n{}",
+        args.episodes,
+        args.seed,
+        args.seed.wrapping_add(args.episodes - 1),
+        crossplay::markdown(summaries, &args.scenarios, &args.policies)
+    );
+    let path = out.join("crossplay.md");
+    std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    for scenario in &args.scenarios {
+        for figure in crossplay::MATRIX_FIGURES {
+            let png = out.join(format!("crossplay_{scenario}_{figure}.png"));
+            plots::crossplay(&png, scenario, figure, &args.policies, summaries)?;
+        }
+    }
+    println!("cross-play: {0}/crossplay.md, crossplay_<scenario>_<figure>.png", out.display());
     Ok(())
 }
 

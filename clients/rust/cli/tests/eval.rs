@@ -160,3 +160,44 @@ fn a_league_accepts_a_run_of_its_settings_and_refuses_one_of_other_seeds() {
     assert!(!refused.status.success() && stderr.contains("first seed 7, not the league's 0"), "{stderr}");
     assert_eq!(std::fs::read_to_string(&league).expect("the league file"), before, "a refused run changes nothing");
 }
+
+#[test]
+fn cross_play_on_merge_fills_the_matrix_of_every_style_and_game_identically_twice() {
+    let harness = serve();
+    let args = ["--scenario", "merge", "--episodes", "1", "--policy", "gt:normal:stackelberg", "--opponents"];
+    let (first, second) = (out_dir("cross-a"), out_dir("cross-b"));
+    for out in [&first, &second] {
+        let output = eval(&harness, out, &args);
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    }
+    for file in ["crossplay.md", "results.json"] {
+        let read = |dir: &Path| std::fs::read_to_string(dir.join(file)).expect("written");
+        assert_eq!(read(&first), read(&second), "{file}");
+    }
+    let json = results(&first);
+    let episodes = json["episodes"].as_array().expect("episodes");
+    let rows: Vec<&str> = episodes.iter().filter_map(|e| e["policy"].as_str()).collect();
+    let mut expected = Vec::new();
+    for style in ["aggressive", "normal", "conservative"] {
+        for game in ["nash", "stackelberg"] {
+            expected.push(format!("gt:normal:stackelberg vs gt:{style}:{game}"));
+        }
+    }
+    expected.push("gt:normal:stackelberg vs idm".to_string());
+    assert_eq!(rows, expected, "one cell per style and game, then IDM");
+    // The opponent is really another driver: AC's style changes how the merge goes.
+    let k = arena_client::eval::figure_index("return").expect("a figure");
+    let returns: Vec<f64> = episodes.iter().map(|e| e["figures"][k].as_f64().expect("a number")).collect();
+    assert_ne!(returns[0], returns[4], "aggressive and conservative opponents give the same return: {returns:?}");
+    let table = std::fs::read_to_string(first.join("crossplay.md")).expect("crossplay.md");
+    assert!(table.contains("### merge: success (one distinct episode per cell: no intervals)"), "{table}");
+    for figure in ["success", "at_fault", "return"] {
+        let bytes = std::fs::read(first.join(format!("crossplay_merge_{figure}.png"))).expect("heatmap written");
+        assert!(bytes.starts_with(b"\x89PNG"), "{figure} heatmap is a PNG");
+    }
+    let out = out_dir("cross-none");
+    let refused =
+        eval(&harness, &out, &["--scenario", "highway", "--episodes", "1", "--policy", "idle", "--opponents"]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && stderr.contains("no opponents"), "{stderr}");
+}

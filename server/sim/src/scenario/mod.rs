@@ -29,7 +29,7 @@ pub use spec::{ActionKind, DriverSpec, Goal, GtTraffic, RewardSpec, TrafficSpec,
 pub use vary::Variation;
 
 use file::ScenarioFile;
-use overrides::{apply_override, nesting};
+use overrides::{OPPONENTS, apply_opponents, apply_override, nesting};
 
 /// The scenario files shipped in `scenarios/`, compiled in so the server needs no
 /// files beside it: (name, file name, text).
@@ -88,13 +88,18 @@ impl Scenario {
     }
 
     /// Parses and validates scenario text; `overrides` are (dotted key, TOML value)
-    /// pairs applied before validation, so they are checked exactly as the file is.
+    /// pairs applied before validation, so they are checked exactly as the file is; those
+    /// of every opponent (`opponents.<what>`) last, over any other that sets an opponent.
     pub fn parse(file: &str, text: &str, overrides: &[(String, toml::Value)]) -> Result<Scenario, ScenarioError> {
         let fail = |kind| ScenarioError { file: file.to_string(), kind };
         let mut table: toml::Table =
             text.parse().map_err(|e: toml::de::Error| fail(ScenarioErrorKind::Syntax(e.to_string())))?;
-        for (key, value) in overrides {
+        let (opponents, others): (Vec<_>, Vec<_>) = overrides.iter().partition(|(key, _)| key.starts_with(OPPONENTS));
+        for (key, value) in others {
             apply_override(&mut table, key, value.clone()).map_err(&fail)?;
+        }
+        for (key, value) in opponents {
+            apply_opponents(&mut table, key, value.clone()).map_err(&fail)?;
         }
         let depth = nesting(&table);
         if depth > MAX_SCENARIO_DEPTH {

@@ -1,7 +1,8 @@
-//! Dotted-key overrides (`vehicle.<name>.<field>`, `sim.step_dt`) applied to a scenario's
-//! TOML table before it is validated, so they are checked exactly as the file is, and the
-//! bound on how deep that table may nest: a scenario, its overrides included, can come
-//! from a client, and parsing, validating and dropping a TOML value recurse on its depth.
+//! Dotted-key overrides (`vehicle.<name>.<field>`, `sim.step_dt`, and `opponents.<what>`
+//! for every opponent at once) applied to a scenario's TOML table before it is validated,
+//! so they are checked exactly as the file is, and the bound on how deep that table may
+//! nest: a scenario, its overrides included, can come from a client, and parsing,
+//! validating and dropping a TOML value recurse on its depth.
 
 use super::ScenarioErrorKind;
 
@@ -42,6 +43,55 @@ pub(super) fn apply_override(table: &mut toml::Table, key: &str, value: toml::Va
         };
     }
     current.insert(last.to_string(), value);
+    Ok(())
+}
+
+/// The prefix of the keys that drive every opponent at once (`apply_opponents`).
+pub(super) const OPPONENTS: &str = "opponents.";
+
+/// Sets what `key` names for every opponent of the scenario: `opponents.style`
+/// (aggressive, normal, conservative), `opponents.game` (nash, stackelberg), or
+/// `opponents.driver = "idm"` (IDM + MOBIL in their place). The opponents are the cars a
+/// learner competes against: every `[[vehicle]]` driven by `gt`, and the game-theoretic
+/// traffic (`[traffic] gt`), which becomes IDM traffic under `driver = "idm"`. Applied
+/// after every other override and `[vary]` draw, so a drawn style does not undo it.
+pub(super) fn apply_opponents(table: &mut toml::Table, key: &str, value: toml::Value) -> Result<(), ScenarioErrorKind> {
+    let bad = |message: String| ScenarioErrorKind::BadOverride { key: key.to_string(), message };
+    let what = key.strip_prefix(OPPONENTS).unwrap_or(key);
+    let text = value.as_str().ok_or_else(|| bad(format!("expected a string, not {value}")))?;
+    if what == "driver" && text != "idm" {
+        return Err(bad(format!("the one driver opponents can be given is \"idm\", not \"{text}\"")));
+    }
+    if !matches!(what, "style" | "game" | "driver") {
+        return Err(bad("opponents.<what> is opponents.style, opponents.game or opponents.driver".into()));
+    }
+    let mut found = 0;
+    if let Some(toml::Value::Array(vehicles)) = table.get_mut("vehicle") {
+        for vehicle in vehicles.iter_mut().filter_map(toml::Value::as_table_mut) {
+            let Some(toml::Value::Table(driver)) = vehicle.get_mut("driver") else { continue };
+            if driver.get("kind").and_then(toml::Value::as_str) != Some("gt") {
+                continue;
+            }
+            found += 1;
+            if what == "driver" {
+                let style = driver.get("style").cloned().unwrap_or_else(|| toml::Value::String("normal".into()));
+                *driver = toml::Table::from_iter([("kind".to_string(), value.clone()), ("style".to_string(), style)]);
+            } else {
+                driver.insert(what.to_string(), value.clone());
+            }
+        }
+    }
+    if let Some(toml::Value::Table(traffic)) = table.get_mut("traffic") {
+        if what == "driver" {
+            found += usize::from(traffic.remove("gt").is_some());
+        } else if let Some(toml::Value::Table(gt)) = traffic.get_mut("gt") {
+            found += 1;
+            gt.insert(what.to_string(), value.clone());
+        }
+    }
+    if found == 0 {
+        return Err(bad("the scenario has no opponents (no vehicle driven by gt, no [traffic] gt)".into()));
+    }
     Ok(())
 }
 

@@ -402,3 +402,67 @@ fn a_goal_names_lanes_of_the_road_and_vehicles_of_the_file() {
     let message = error(&goal("[goal]\nlane = 0"));
     assert!(message.contains("unknown field `lane`"), "{message}");
 }
+
+// Cross-play: `opponents.<what>` drives every opponent at once (arena eval --opponents).
+
+fn builtin_with(name: &str, overrides: &[(&str, &str)]) -> Result<Scenario, ScenarioError> {
+    let (_, file, text) = BUILTIN_SCENARIOS.iter().find(|(n, ..)| *n == name).expect("a built-in scenario");
+    let overrides: Vec<(String, toml::Value)> =
+        overrides.iter().map(|(k, v)| (k.to_string(), toml::Value::String(v.to_string()))).collect();
+    Scenario::parse(file, text, &overrides)
+}
+
+fn opponent_drivers(scenario: &Scenario) -> Vec<(String, Style, Option<Game>)> {
+    let game = |driver: &DriverSpec| match driver {
+        DriverSpec::Gt { game, .. } => Some(*game),
+        _ => None,
+    };
+    scenario.vehicles.iter().filter(|v| v.name != "ec_0").map(|v| (v.name.clone(), v.style, game(&v.driver))).collect()
+}
+
+#[test]
+fn opponents_take_the_style_and_game_given_over_the_drawn_ones() {
+    use rand::SeedableRng;
+    let plain = builtin_with("merge-random", &[]).unwrap();
+    let crossed =
+        builtin_with("merge-random", &[("opponents.style", "aggressive"), ("opponents.game", "nash")]).unwrap();
+    let mut styles = Vec::new();
+    for seed in 0..12 {
+        let drawn = plain.episode(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &[]).unwrap();
+        let against = crossed.episode(&mut rand_chacha::ChaCha8Rng::seed_from_u64(seed), &[]).unwrap();
+        assert_eq!(opponent_drivers(&against), vec![("ac".to_string(), Style::Aggressive, Some(Game::Nash))]);
+        styles.push(drawn.vehicles[1].style);
+        // Everything else drawn is drawn the same: the same episodes, another opponent.
+        let place = |s: &Scenario| s.vehicles.iter().map(|v| (v.s, v.speed, v.lane)).collect::<Vec<_>>();
+        assert_eq!(place(&drawn), place(&against), "seed {seed}");
+    }
+    assert!(
+        styles.contains(&Style::Normal) && styles.contains(&Style::Conservative),
+        "[vary] draws the style: {styles:?}"
+    );
+}
+
+#[test]
+fn idm_opponents_replace_gt_vehicles_and_gt_traffic() {
+    let merge = builtin_with("merge", &[("opponents.driver", "idm")]).unwrap();
+    assert_eq!(opponent_drivers(&merge), vec![("ac".to_string(), Style::Normal, None)]);
+    assert!(matches!(merge.vehicles[1].driver, DriverSpec::Idm));
+    let highway = builtin_with("highway-gt", &[("opponents.style", "conservative")]).unwrap();
+    let gt = highway.traffic.as_ref().and_then(|t| t.gt.as_ref()).expect("highway-gt has gt traffic");
+    assert_eq!((gt.style, gt.game, gt.count), (Style::Conservative, Game::Stackelberg, 8));
+    let idm = builtin_with("highway-gt", &[("opponents.driver", "idm")]).unwrap();
+    assert!(idm.traffic.as_ref().is_some_and(|t| t.gt.is_none()));
+}
+
+#[test]
+fn opponents_that_cannot_be_set_are_refused_by_name() {
+    let refused = |name: &str, key: &str, value: &str| builtin_with(name, &[(key, value)]).unwrap_err().to_string();
+    let none = refused("highway", "opponents.style", "aggressive");
+    assert!(none.contains("opponents.style") && none.contains("no opponents"), "{none}");
+    let driver = refused("merge", "opponents.driver", "gt");
+    assert!(driver.contains("\"idm\""), "{driver}");
+    let what = refused("merge", "opponents.speed", "3");
+    assert!(what.contains("opponents.style, opponents.game or opponents.driver"), "{what}");
+    let style = refused("merge", "opponents.style", "reckless");
+    assert!(style.contains("reckless"), "{style}");
+}

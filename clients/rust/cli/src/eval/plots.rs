@@ -1,10 +1,10 @@
 //! The PNG plots of `arena eval`: per scenario, box plots of the RMS of the paper's three
-//! cost components per policy, and bars of the success and collision rates with their
-//! 95 % intervals.
+//! cost components per policy, bars of the success and collision rates with their 95 %
+//! intervals, and with `--opponents` a heatmap per cross-play matrix.
 
 use std::path::Path;
 
-use arena_client::eval::{Episode, FIGURES, Summary, figure_index};
+use arena_client::eval::{Episode, FIGURES, Summary, crossplay, figure_index};
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -114,4 +114,60 @@ fn label(value: &SegmentValue<i32>, names: &[String]) -> String {
         SegmentValue::CenterOf(i) => names.get(*i as usize).cloned().unwrap_or_default(),
         _ => String::new(),
     }
+}
+
+/// A cross-play matrix of `figure` on `scenario` as a heatmap: a row per policy, a column
+/// per opponent, each cell coloured from the worst to the best value of the matrix and
+/// labelled with its estimate (and interval, unless the scenario is deterministic).
+pub fn crossplay(
+    file: &Path,
+    scenario: &str,
+    figure: &str,
+    policies: &[String],
+    summaries: &[Summary],
+) -> anyhow::Result<()> {
+    font()?;
+    let opponents = crossplay::opponents();
+    let cells: Vec<Vec<Option<crossplay::Cell>>> = policies
+        .iter()
+        .map(|p| opponents.iter().map(|o| crossplay::cell(summaries, scenario, p, &o.name, figure)).collect())
+        .collect();
+    let values: Vec<f64> = cells.iter().flatten().flatten().map(|c| c.value).collect();
+    let (low, high) = values.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
+    let better_high =
+        FIGURES.iter().find(|f| f.key == figure).is_none_or(|f| f.better != arena_client::eval::Better::Lower);
+    // Drawn in pixels: a cell per (policy, opponent), names at the rows' and columns' centres.
+    let (left, top, cell_w, cell_h) = (210i32, 70i32, 190i32, 46i32);
+    let width = (left + cell_w * opponents.len() as i32 + 20) as u32;
+    let height = (top + cell_h * policies.len() as i32 + 30) as u32;
+    let root = BitMapBackend::new(file, (width, height)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let heading = FIGURES.iter().find(|f| f.key == figure).map_or(figure, |f| f.heading);
+    let title = format!("{scenario}: {heading}, policy (rows) against opponents (columns)");
+    root.draw_text(&title, &("sans-serif", 20).into_font().color(&BLACK), (10, 10))?;
+    let text = ("sans-serif", 14).into_font().color(&BLACK);
+    for (col, opponent) in opponents.iter().enumerate() {
+        root.draw_text(&opponent.name, &text, (left + cell_w * col as i32 + 8, top - 22))?;
+    }
+    for (row, line) in cells.iter().enumerate() {
+        let y = top + cell_h * row as i32;
+        root.draw_text(&policies[row], &text, (10, y + cell_h / 2 - 7))?;
+        for (col, cell) in line.iter().enumerate() {
+            let x = left + cell_w * col as i32;
+            let colour = match cell {
+                None => RGBColor(220, 220, 220),
+                Some(c) => {
+                    let t = if high > low { (c.value - low) / (high - low) } else { 0.5 };
+                    let good = if better_high { t } else { 1.0 - t };
+                    // From red (the matrix's worst) to green (its best).
+                    RGBColor((230.0 - 150.0 * good) as u8, (90.0 + 130.0 * good) as u8, 90)
+                }
+            };
+            root.draw(&Rectangle::new([(x, y), (x + cell_w - 2, y + cell_h - 2)], colour.filled()))?;
+            let label = cell.map_or("-".to_string(), |c| c.label());
+            root.draw_text(&label, &text, (x + 8, y + cell_h / 2 - 7))?;
+        }
+    }
+    root.present()?;
+    Ok(())
 }

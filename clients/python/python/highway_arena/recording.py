@@ -12,7 +12,8 @@ episodes follow one another) and ``step`` (env steps since it began):
   ``scenario``, ``step_dt``, ``agents``.
 - ``episode``: at each reset, ``index`` and ``seed``.
 - ``world/road/lane_<i>``: the lane as a grey strip along its centre line (``end_s``,
-  ``ends_early``, ``speed_limit``), its edges as white lines (``.../edges``); ``world/road/lane_<i>/end``: a red bar where a lane ends before the road.
+  ``ends_early``, ``speed_limit``), its edges as white lines (``.../edges``);
+  ``world/road/lane_<i>/end``: a red bar where a lane ends before the road.
 - ``world/vehicles/<name>``: at every control period, its oriented body (a strip of the
   car's width along its axis: a box with rounded corners) coloured by driver, and its
   state (``x``, ``y``, ``heading``, ``s``, ``d``, ``speed``, ``accel``, ``lane``,
@@ -94,7 +95,9 @@ class Recording:
     chunks merged (Rerun's own optimiser: about 40 % smaller, half a second a minute of
     highway-gt)."""
 
-    def __init__(self, path=None, *, spawn=False, serve=False, web_port=9090, grpc_port=9876, meta=None, compact=True):
+    def __init__(
+        self, path=None, *, spawn=False, serve=False, web_port=9090, grpc_port=9876, meta=None, compact=True
+    ):
         rr = _rerun()
         if path is None and not spawn and not serve:
             raise ValueError("a recording needs somewhere to go: a path, spawn=True or serve=True")
@@ -190,7 +193,9 @@ class Recording:
                 f"world/road/lane_{i}",
                 rr.LineStrips2D([centre], radii=width / 2, colors=[ASPHALT], draw_order=-10.0),
                 rr.AnyValues(
-                    end_s=float(lane["end"]), ends_early=bool(lane["ends_early"]), speed_limit=float(lane["speed_limit"])
+                    end_s=float(lane["end"]),
+                    ends_early=bool(lane["ends_early"]),
+                    speed_limit=float(lane["speed_limit"]),
                 ),
             )
             self._log(
@@ -238,9 +243,15 @@ class Recording:
                 place = self._last_position.get(agent, (0.0, 0.0))
                 self._log(
                     f"events/ends/{agent}",
-                    rr.Points2D([place], radii=1.5, colors=[CRASHED if reason == "collision" else (250, 250, 250)], labels=[f"{agent}: {reason}"]),
+                    rr.Points2D(
+                        [place],
+                        radii=1.5,
+                        colors=[CRASHED if reason == "collision" else (250, 250, 250)],
+                        labels=[f"{agent}: {reason}"],
+                    ),
                 )
-                self._log("events/log", rr.TextLog(f"t = {self._end - self._offset:.2f} s: {agent} ended: {reason}", level="INFO"))
+                text = f"t = {self._end - self._offset:.2f} s: {agent} ended: {reason}"
+                self._log("events/log", rr.TextLog(text, level="INFO"))
 
     def _add_frames(self, frames: dict):
         """Keeps frames to write, and where each vehicle was at the last of them."""
@@ -299,7 +310,7 @@ class Recording:
             colours = np.array([_colour(vehicle, int(e)) for e in ends], dtype=np.uint8)
             name = vehicle["name"]
             columns = [
-                *rr.LineStrips2D.columns(strips=strips, colors=colours).partition(np.ones(len(times), dtype=np.int64)),
+                *rr.LineStrips2D.columns(strips=strips, colors=colours).partition(np.ones(len(times), np.int64)),
                 *rr.AnyValues.columns(**{key: frames[key][:, i] for key in VEHICLE_COLUMNS}),
             ]
             self.stream.send_columns(f"world/vehicles/{name}", indexes=index, columns=columns)
@@ -313,14 +324,19 @@ class Recording:
                 self._labelled.add(vehicle["name"])
                 self._log(
                     f"world/vehicles/{vehicle['name']}",
-                    rr.LineStrips2D.from_fields(radii=[float(vehicle["width"]) / 2.0], labels=[vehicle["name"]], show_labels=bool(vehicle["learner"] or vehicle["driver"] == "gt")),
+                    rr.LineStrips2D.from_fields(
+                        radii=[float(vehicle["width"]) / 2.0],
+                        labels=[vehicle["name"]],
+                        show_labels=bool(vehicle["learner"] or vehicle["driver"] == "gt"),
+                    ),
                     static=True,
                 )
         for event in collisions:
             rear, front = self._vehicles[event["rear"]]["name"], self._vehicles[event["front"]]["name"]
             self.stream.set_time(TIMELINE, duration=self._offset + event["time"])
             text = f"collision {rear} / {front} (at fault: {event['at_fault']})"
-            self._log("events/collisions", rr.Points2D([[event["x"], event["y"]]], radii=2.0, colors=[CRASHED], labels=[text]))
+            point = rr.Points2D([[event["x"], event["y"]]], radii=2.0, colors=[CRASHED], labels=[text])
+            self._log("events/collisions", point)
             self._log("events/log", rr.TextLog(f"t = {event['time']:.2f} s: {text}", level="WARN"))
 
     def _flush(self):

@@ -10,6 +10,7 @@ import argparse
 import os
 import subprocess
 import sys
+import urllib.parse
 
 from .recording import FORMAT, FORMAT_VERSION, TIMELINE, _rerun
 
@@ -38,10 +39,13 @@ def summary(path) -> dict:
         return static[column].iloc[0] if column in static.columns else default
 
     table = store.reader(index=TIMELINE).to_pandas()
+    entities = {column.split(":")[0] for column in table.columns if ":" in column}
     vehicles = sorted(
-        {column.split(":")[0].removeprefix("/world/vehicles/") for column in table.columns if column.startswith("/world/vehicles/") and column.endswith(":x")}
+        entity.removeprefix("/world/vehicles/")
+        for entity in entities
+        if entity.startswith("/world/vehicles/") and f"{entity}:x" in table.columns
     )
-    lanes = sorted({column.split(":")[0] for column in table.columns if column.startswith("/world/road/lane_") and column.endswith(":LineStrips2D:strips") and column.count("/") == 3})
+    lanes = [entity for entity in entities if entity.startswith("/world/road/lane_") and entity.count("/") == 3]
     def present(column):
         return table[column].map(lambda value: value is not None and len(value) > 0)
 
@@ -96,7 +100,8 @@ def main(argv=None) -> int:
         return 0
     command = viewer_command(args.file, args.web, args.bind, args.web_port, args.grpc_port)
     if args.web:
-        print(f"web viewer: http://{args.bind}:{args.web_port} (Ctrl-C stops it)")
+        data = urllib.parse.quote(f"rerun+http://{args.bind}:{args.grpc_port}/proxy", safe="")
+        print(f"web viewer: http://{args.bind}:{args.web_port}/?url={data} (Ctrl-C stops it)")
     try:
         return subprocess.call(command)
     except KeyboardInterrupt:

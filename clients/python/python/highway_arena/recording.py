@@ -44,8 +44,9 @@ FORMAT_VERSION = 1
 TIMELINE = "sim_time"
 STEP_TIMELINE = "step"
 
-# Colours: learners green, the game-theoretic AV blue by style (darker is bolder), IDM
-# yellow, a crashed car red, one that left the road or ended its lane grey.
+# Colours: learners green (whoever drives them: with `policy` the AV does), the
+# game-theoretic AV blue by style (darker is bolder), IDM yellow, a crashed car red, one
+# that left the road or ended its lane grey.
 LEARNER = (50, 200, 80)
 GT = {"aggressive": (40, 70, 200), "normal": (60, 130, 240), "conservative": (120, 190, 250)}
 IDM = (230, 200, 60)
@@ -78,7 +79,7 @@ def _colour(driver: dict, end: int) -> tuple:
         return CRASHED
     if end != 0:
         return GONE
-    if driver["driver"] == "learner":
+    if driver["learner"]:
         return LEARNER
     if driver["driver"] == "gt":
         return GT.get(driver["style"], GT["normal"])
@@ -133,7 +134,12 @@ class Recording:
         self._last_position = {}  # vehicle name -> its (x, y) at the last frame written
         self._labelled = set()  # vehicles whose name and width are written
         self._closed = False
+        self._bounds = None  # the road view's first window, set by the first episode
         self.stream.send_blueprint(self._blueprint())
+        # World coordinates have Y to the left of the road's start (up); Rerun's 2D
+        # views draw Y down, so the scene is mirrored back once, here.
+        for root in ("world", "events"):
+            self._log(root, rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
         self._log(
             "meta",
             rr.AnyValues(
@@ -146,9 +152,15 @@ class Recording:
 
     def _blueprint(self):
         rrb = self._rr.blueprint
+        bounds = None
+        if self._bounds is not None:
+            (x0, x1), (y0, y1) = self._bounds
+            bounds = rrb.VisualBounds2D(x_range=[x0, x1], y_range=[y0, y1])
         return rrb.Blueprint(
             rrb.Horizontal(
-                rrb.Spatial2DView(name="road", origin="/", contents=["/world/**", "/events/**"]),
+                rrb.Spatial2DView(
+                    name="road", origin="/", contents=["/world/**", "/events/**"], visual_bounds=bounds
+                ),
                 rrb.Vertical(
                     rrb.TimeSeriesView(name="speed (m/s)", origin="/plots/speed"),
                     rrb.TimeSeriesView(name="reward", origin="/plots/reward"),
@@ -157,7 +169,7 @@ class Recording:
                 ),
                 column_shares=[3, 2],
             ),
-            rrb.TimePanel(state="expanded"),
+            rrb.TimePanel(state="expanded", timeline=TIMELINE),
         )
 
     def _log(self, path, *archetypes, static=False):
@@ -221,6 +233,14 @@ class Recording:
             )
         self._add_frames(first)
         self._write_frames()
+        if self._bounds is None:
+            # The road view opens on the first learner (else the first vehicle): 120 m
+            # of road around it, drawn mirrored (above); double-click shows it all.
+            focus = next((i for i, v in enumerate(self._vehicles) if v["learner"]), 0)
+            if self._vehicles:
+                x, y = float(first["x"][0, focus]), -float(first["y"][0, focus])
+                self._bounds = ((x - 30.0, x + 90.0), (y - 25.0, y + 25.0))
+                self.stream.send_blueprint(self._blueprint())
         for agent, info in (infos or {}).items():
             self._agent_row(agent, None, 0.0, False, False, info)
 

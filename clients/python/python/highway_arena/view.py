@@ -102,6 +102,11 @@ def main(argv=None) -> int:
     if args.web:
         data = urllib.parse.quote(f"rerun+http://{args.bind}:{args.grpc_port}/proxy", safe="")
         print(f"web viewer: http://{args.bind}:{args.web_port}/?url={data} (Ctrl-C stops it)")
+    sys.stdout.flush()
+    if os.name == "posix":
+        # The viewer takes this process's place: stopping it (Ctrl-C, a signal to this
+        # pid) stops the viewer, with no child left behind.
+        os.execv(command[0], command)
     try:
         return subprocess.call(command)
     except KeyboardInterrupt:

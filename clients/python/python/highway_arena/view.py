@@ -67,11 +67,23 @@ def summary(path) -> dict:
     }
 
 
+def rerun_binary() -> list:
+    """rerun-sdk's own viewer binary, found as ``python -m rerun_cli`` finds it, run
+    directly (so that stopping it stops the viewer: the module runs it as a child)."""
+    import rerun_cli
+
+    binary = os.environ.get("RERUN_CLI_PATH") or os.path.join(os.path.dirname(rerun_cli.__file__), "rerun")
+    if sys.platform.startswith("win") and not binary.endswith(".exe"):
+        binary += ".exe"
+    return [binary] if os.path.isfile(binary) else [sys.executable, "-m", "rerun_cli"]
+
+
 def viewer_command(path, web=False, bind="127.0.0.1", web_port=9090, grpc_port=9876) -> list:
-    """The ``rerun`` command that opens ``path`` (rerun-sdk's own viewer binary)."""
-    command = [sys.executable, "-m", "rerun", os.fspath(path)]
+    """The ``rerun`` command that opens ``path``: the desktop viewer, or the web viewer
+    served (and no browser opened: the address is printed)."""
+    command = [*rerun_binary(), os.fspath(path)]
     if web:
-        command += ["--web-viewer", "--bind", bind, "--web-viewer-port", str(web_port), "--port", str(grpc_port)]
+        command += ["--serve-web", "--bind", bind, "--web-viewer-port", str(web_port), "--port", str(grpc_port)]
     return command
 
 

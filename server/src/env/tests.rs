@@ -854,3 +854,25 @@ fn recorded_road_geometry_follows_the_road_curves_and_ends() {
     plain.reset(Some(0), NO_OPTIONS).unwrap();
     assert!(plain.world_start().is_none());
 }
+
+#[test]
+fn a_recording_that_would_not_fit_a_reply_is_refused() {
+    // highway-gt's 51 vehicles at 11 frames a step fit; 10 000 vehicles at 11 do not.
+    assert!(recording::check_fits(51, 11).is_ok());
+    let refused = recording::check_fits(10_000, 11).unwrap_err();
+    assert_eq!(refused.code, ErrorCode::InvalidScenario);
+    assert!(refused.message.contains("10000 vehicles x 11 frames"), "{}", refused.message);
+    assert!(refused.env_usable);
+    // A reset that would record too much leaves the env as it was: a highway of 2 000
+    // cars deciding once a minute (601 frames a step) is refused, and the last episode
+    // goes on.
+    let mut env = env("highway", CreateOptions { record: true, ..CreateOptions::default() });
+    env.reset(Some(1), NO_OPTIONS).unwrap();
+    env.step(&[]).unwrap();
+    let time = env.world().unwrap().time();
+    let huge = overriding(&[("traffic.count", OptionValue::Int(2000)), ("sim.step_dt", OptionValue::Float(60.0))]);
+    let error = env.reset(Some(2), &huge).unwrap_err();
+    assert!(error.message.contains("record:"), "{}", error.message);
+    assert_eq!(env.world().unwrap().time(), time);
+    assert_eq!(env.step(&[]).unwrap().len(), 1);
+}

@@ -183,3 +183,27 @@ def test_continuous_agents_and_expert_infos_record_beside_meta_ones(tmp_path):
         frame = table(path)
         assert list(at(frame, 0.2, "/agents/ec_0:action")) == list(np.asarray(action, dtype=float).reshape(-1))
         assert len(at(frame, 0.2, "/agents/ec_0:info.expert_action")) == (1 if action_type == "meta" else 2)
+
+
+def test_a_collision_is_recorded_where_and_when_it_happened(tmp_path):
+    # overtake, the learner holding "faster" behind the slow car: it runs into it.
+    path = tmp_path / "crash.rrd"
+    env = highway_arena.parallel_env("overtake", record=path)
+    env.reset(seed=0)
+    infos = {}
+    while env.agents:
+        _, _, _, _, infos = env.step({"ec_0": 3})
+    env.close()
+    assert highway_arena.END_REASONS[infos["ec_0"]["end_reason"]] == "collision"
+    frame = table(path)
+    when = times_of(frame, "/events/collisions:Points2D:labels")
+    assert len(when) == 1
+    label = at(frame, when[0], "/events/collisions:Points2D:labels")[0]
+    assert label.startswith("collision ec_0 / ") or " / ec_0 " in label, label
+    # Between the two frames around it, and where the learner was then.
+    frames = times_of(frame, "/world/vehicles/ec_0:x")
+    after = frames[frames >= when[0] - 1e-9][0]
+    assert after - when[0] < 0.1
+    (x, y) = at(frame, when[0], "/events/collisions:Points2D:positions")[0]
+    ego = at(frame, after, "/world/vehicles/ec_0:x")[0], at(frame, after, "/world/vehicles/ec_0:y")[0]
+    assert np.hypot(x - ego[0], y - ego[1]) < 6.0, ((x, y), ego)

@@ -111,7 +111,8 @@ class ParallelEnv(_ParallelEnv):
     ):
         # Kept so a pickled env (SuperSuit's vector envs copy them) rebuilds its own.
         named = {key: value for key, value in locals().items() if key not in ("self", "__class__", "kwargs")}
-        self._init_args = {**named, **kwargs}
+        # A copy records nothing: copies writing one file would spoil it.
+        self._init_args = {**{k: v for k, v in named.items() if k != "record"}, **kwargs}
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, not {render_mode!r}")
         connection, dotted = split(kwargs, connect=connect)

@@ -358,6 +358,7 @@ class Recording:
             point = rr.Points2D([[event["x"], event["y"]]], radii=2.0, colors=[CRASHED], labels=[text])
             self._log("events/collisions", point)
             self._log("events/log", rr.TextLog(f"t = {event['time']:.2f} s: {text}", level="WARN"))
+        self._at(self._end)
 
     def _flush(self):
         self._write_frames()

@@ -234,7 +234,7 @@ class ParallelEnv(_ParallelEnv):
         and infos at every step, with rerun-sdk (``pip install 'highway-arena[view]'``),
         into the ``.rrd`` file ``path``, a desktop viewer it starts (``spawn=True``), or a
         web viewer served on 127.0.0.1 (``serve=True``; its address is the returned
-        recording's ``url``). Started mid-episode, it begins with the world as it is.
+        recording's ``url``; it stays up until this process exits). Started mid-episode, it begins with the world as it is.
         Returns the ``Recording``; ``stop_recording()`` ends it."""
         if self._recording is not None:
             raise RuntimeError("this env is recording already: stop_recording() first")

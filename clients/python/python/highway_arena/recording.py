@@ -31,7 +31,10 @@ episodes follow one another) and ``step`` (env steps since it began):
 
 from __future__ import annotations
 
+import atexit
 import os
+import subprocess
+import urllib.parse
 import uuid
 
 import numpy as np
@@ -67,6 +70,16 @@ def _rerun():
             "recordings need rerun-sdk: pip install 'highway-arena[view]' (or rerun-sdk==0.41.0)"
         ) from error
     return rerun
+
+
+def _stop(process):
+    """Stops a viewer this module started (by its own handle)."""
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            process.kill()
 
 
 def _frames(raw: dict) -> dict:
@@ -117,11 +130,23 @@ class Recording:
         if spawn:
             rr.spawn(connect=False)
             sinks.append(rr.GrpcSink())
+        self.viewer = None
         if serve:
-            server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=int(grpc_port), server_memory_limit="25%")
-            sinks.append(server)
-            rr.serve_web_viewer(web_port=int(web_port), open_browser=False, connect_to=server.uri)
-            self.url = f"http://127.0.0.1:{int(web_port)}/?url={server.uri}"
+            # Rerun's own server, bound to 127.0.0.1 for both the page and the data (the
+            # SDK's serve_web_viewer would bind the page to every interface); it stays up
+            # for viewing after the recording stops, until this Python process exits.
+            from .view import rerun_binary
+
+            data = f"rerun+http://127.0.0.1:{int(grpc_port)}/proxy"
+            self.viewer = subprocess.Popen(
+                [*rerun_binary(), "--serve-web", "--bind", "127.0.0.1"]
+                + ["--web-viewer-port", str(int(web_port)), "--port", str(int(grpc_port))],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+            atexit.register(_stop, self.viewer)
+            sinks.append(rr.GrpcSink(data))
+            self.url = f"http://127.0.0.1:{int(web_port)}/?url={urllib.parse.quote(data, safe='')}"
         self.stream.set_sinks(*sinks)
         self._meta = dict(meta or {})
         self._offset = 0.0  # sim_time where the current episode began
@@ -370,10 +395,11 @@ class Recording:
         self._closed = True
         self._write_frames()
         self.stream.flush()
-        if not self.live:
-            self.stream.disconnect()
-            if self.path is not None and self._compact:
-                self._rewrite_compacted()
+        # Everything is with the sinks now (a viewer keeps what it got; a served one
+        # keeps it for late browsers): let go of them.
+        self.stream.disconnect()
+        if self.path is not None and self._compact:
+            self._rewrite_compacted()
 
     def _rewrite_compacted(self):
         """Rewrites the file with its chunks merged (many small chunks of per-step rows

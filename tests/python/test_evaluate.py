@@ -92,6 +92,25 @@ def test_a_league_gathers_python_policies_and_refuses_other_seeds(tmp_path):
     assert league.read_text() == before
 
 
+def test_cross_play_gives_the_matrices_arena_eval_writes(server, tmp_path):
+    def keep_lane(observation):
+        return 1
+
+    ours = highway_arena.evaluate({"keep": keep_lane}, ["merge"], episodes=1, opponents=True, quiet=True)
+    command = [str(_arena_binary()), "eval", "--connect", server.endpoint, "--out", str(tmp_path)]
+    command += ["--scenario", "merge", "--episodes", "1", "--policy", "idle", "--opponents"]
+    subprocess.run(command, capture_output=True, text=True, check=True)
+    cli = (tmp_path / "crossplay.md").read_text()
+    # The CLI's idle and this keep-lane callable drive alike: the same matrices.
+    assert ours.crossplay.markdown.replace("| keep |", "| idle |") in cli, f"python:\n{ours.crossplay.markdown}"
+    success = ours.crossplay.matrix("merge", "success")
+    assert len(success) == 7 and set(success.values()) == {0.0}, success
+    written = ours.write(tmp_path / "py")
+    assert str(tmp_path / "py" / "crossplay_merge_return.png") in written
+    with pytest.raises(ValueError, match="no opponents"):
+        highway_arena.evaluate(["idle"], ["highway"], episodes=1, opponents=True, quiet=True)
+
+
 def test_bad_input_is_refused_by_name():
     with pytest.raises(ValueError, match="bootstrap must be a whole number of resamples, at least 100"):
         highway_arena.evaluate(["idle"], ["merge"], episodes=1, bootstrap=10, quiet=True)

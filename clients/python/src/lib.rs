@@ -374,6 +374,55 @@ fn eval_report(
     ))
 }
 
+/// The opponents of a cross-play run, in column order: (name, [(override key, value)])
+/// (`arena_client::eval::crossplay::opponents`).
+#[pyfunction]
+fn crossplay_opponents() -> Vec<(String, Vec<(String, String)>)> {
+    eval::crossplay::opponents().into_iter().map(|o| (o.name, o.overrides)).collect()
+}
+
+/// A cell of a cross-play matrix as Python gets it: (scenario, figure, policy, opponent,
+/// value, low, high, one distinct episode), the numbers `None` where no episode applies.
+type CrossplayCell = (String, String, String, String, Option<f64>, Option<f64>, Option<f64>, Option<bool>);
+
+/// The cross-play matrices of evaluated episodes (`rows` as `eval_report` takes them, each
+/// policy named `<policy> vs <opponent>`): their Markdown and every cell.
+#[pyfunction]
+#[pyo3(signature = (rows, scenarios, policies, bootstrap=None))]
+fn crossplay_report(
+    rows: Vec<(String, String, u64, String, Bound<'_, PyDict>)>,
+    scenarios: Vec<String>,
+    policies: Vec<String>,
+    bootstrap: Option<usize>,
+) -> PyResult<(String, Vec<CrossplayCell>)> {
+    use eval::crossplay;
+    let episodes = episodes_of(rows)?;
+    let bootstrap = Bootstrap { reps: bootstrap.unwrap_or(Bootstrap::default().reps), ..Bootstrap::default() };
+    let settings = eval::Settings { reference: None, bootstrap };
+    let summaries = eval::summarise(&episodes, &settings).map_err(PyValueError::new_err)?;
+    let mut cells = Vec::new();
+    for scenario in &scenarios {
+        for figure in crossplay::MATRIX_FIGURES {
+            for policy in &policies {
+                for opponent in crossplay::opponents() {
+                    let cell = crossplay::cell(&summaries, scenario, policy, &opponent.name, figure);
+                    cells.push((
+                        scenario.clone(),
+                        figure.to_string(),
+                        policy.clone(),
+                        opponent.name,
+                        cell.map(|c| c.value),
+                        cell.map(|c| c.low),
+                        cell.map(|c| c.high),
+                        cell.map(|c| c.one_distinct),
+                    ));
+                }
+            }
+        }
+    }
+    Ok((crossplay::markdown(&summaries, &scenarios, &policies), cells))
+}
+
 /// Adds evaluated episodes (`rows` as `eval_report` takes them), played under the given
 /// settings, to a league (`league`: the file's text, `None` for a new one); returns the
 /// league file's new text and league.md ranked by `rank` (`arena_client::eval::league`).
@@ -738,6 +787,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Env>()?;
     m.add_function(wrap_pyfunction!(eval_report, m)?)?;
     m.add_function(wrap_pyfunction!(league_add, m)?)?;
+    m.add_function(wrap_pyfunction!(crossplay_opponents, m)?)?;
+    m.add_function(wrap_pyfunction!(crossplay_report, m)?)?;
     m.add("ArenaError", m.py().get_type::<ArenaError>())?;
     Ok(())
 }

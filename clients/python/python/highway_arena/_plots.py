@@ -53,3 +53,35 @@ def plot_rates(result, scenario, path):
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+LOWER_IS_BETTER = {"at_fault"}
+
+
+def plot_crossplay(crossplay, scenario, figure, path):
+    """One cross-play matrix as a heatmap: a row per policy, a column per opponent, from the
+    matrix's worst cell (red) to its best (green), each labelled with its estimate."""
+    cells = [c for c in crossplay.cells if c[0] == scenario and c[1] == figure]
+    policies = list(dict.fromkeys(c[2] for c in cells))
+    opponents = list(dict.fromkeys(c[3] for c in cells))
+    grid = [[None] * len(opponents) for _ in policies]
+    labels = [[""] * len(opponents) for _ in policies]
+    for _, _, policy, opponent, value, low, high, one in cells:
+        i, j = policies.index(policy), opponents.index(opponent)
+        grid[i][j] = float("nan") if value is None else value
+        rate = figure != "return"
+        show = (lambda v: f"{100 * v:.0f} %") if rate else (lambda v: f"{v:.3g}")
+        labels[i][j] = "-" if value is None else show(value) + ("" if one else f"\n[{show(low)}, {show(high)}]")
+    cmap = "RdYlGn_r" if figure in LOWER_IS_BETTER else "RdYlGn"
+    fig, ax = plt.subplots(figsize=(2 + 1.6 * len(opponents), 1.2 + 0.7 * len(policies)))
+    ax.imshow(grid, cmap=cmap, aspect="auto")
+    ax.set_xticks(range(len(opponents)), [f"vs {o}" for o in opponents], rotation=20, ha="right")
+    ax.set_yticks(range(len(policies)), policies)
+    for i in range(len(policies)):
+        for j in range(len(opponents)):
+            ax.text(j, i, labels[i][j], ha="center", va="center", fontsize=8)
+    ax.set_title(f"{scenario}: {figure}, policy (rows) against opponents (columns)")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path

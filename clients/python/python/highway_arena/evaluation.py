@@ -42,6 +42,7 @@ class Evaluation:
     episodes: list
     figures: list
     _files: dict = field(repr=False, default_factory=dict)
+    crossplay: "Crossplay | None" = None
 
     def summary(self, scenario, policy) -> dict:
         """{figure: {"n", "mean", "low", "high", "median", "iqm"}} of one policy on one
@@ -80,7 +81,28 @@ class Evaluation:
         for scenario in dict.fromkeys(e["scenario"] for e in self.episodes):
             written.append(plot_costs(self, scenario, os.path.join(out, f"costs_{scenario}.png")))
             written.append(plot_rates(self, scenario, os.path.join(out, f"rates_{scenario}.png")))
+        if self.crossplay is not None:
+            from ._plots import plot_crossplay
+
+            for scenario, figure in dict.fromkeys((c[0], c[1]) for c in self.crossplay.cells):
+                path = os.path.join(out, f"crossplay_{scenario}_{figure}.png")
+                written.append(plot_crossplay(self.crossplay, scenario, figure, path))
         return written
+
+
+@dataclass
+class Crossplay:
+    """The cross-play matrices: ``markdown`` (as ``arena eval --opponents`` writes
+    crossplay.md) and ``cells``, one (scenario, figure, policy, opponent, value, low, high,
+    one distinct episode) per cell, the numbers None where no episode applies."""
+
+    markdown: str
+    cells: list
+
+    def matrix(self, scenario, figure) -> dict:
+        """{(policy, opponent): value} of one scenario's figure (a rate as a fraction, the
+        return as its IQM)."""
+        return {(c[2], c[3]): c[4] for c in self.cells if c[0] == scenario and c[1] == figure}
 
 
 def _named(policies) -> list:
@@ -170,6 +192,7 @@ def evaluate(
     bootstrap=5000,
     league=None,
     rank="return",
+    opponents=False,
     **env_kwargs,
 ) -> Evaluation:
     """Runs each policy for ``episodes`` episodes of each scenario; episode i is reset with
@@ -183,7 +206,11 @@ def evaluate(
     ``bootstrap`` is the number of resamples of every interval but the rates'. ``league``:
     a league file (JSON) to add the rows to, created if missing, refused (ValueError) when
     its seed, episode count or ``max_cycles`` differ (new scenarios join); league.md, ranked by
-    ``rank``, is written beside it (docs/evaluation.md, "League")."""
+    ``rank``, is written beside it (docs/evaluation.md, "League"). ``opponents=True``:
+    cross-play, every policy against each driver the AV can be (``gt:<style>:<game>``)
+    and IDM in the place of all of the scenario's opponents (docs/evaluation.md,
+    "Cross-play"); ``Evaluation.crossplay`` holds the matrices, and ``write`` adds
+    crossplay.md and a heatmap per scenario and figure."""
     named = _named(policies)
     if isinstance(bootstrap, bool) or not isinstance(bootstrap, int) or bootstrap < 100:
         raise ValueError(f"bootstrap must be a whole number of resamples, at least 100 (default 5000), not {bootstrap!r}")
@@ -195,20 +222,32 @@ def evaluate(
         raise ValueError(f"episodes must be at least 1, not {episodes}")
     if not scenarios:
         raise ValueError("give at least one scenario")
+    if opponents and league is not None:
+        raise ValueError("opponents and league cannot be combined: a league ranks policies against each scenario's own opponents")
     _warn_on_training_seeds(named, range(int(seed), int(seed) + episodes))
+    cells = _core.crossplay_opponents() if opponents else [(None, [])]
     rows = []
-    bar = _progress(episodes * len(named) * len(scenarios), quiet)
+    bar = _progress(episodes * len(named) * len(scenarios) * len(cells), quiet)
     try:
         for scenario in scenarios:
             for name, policy in named:
-                if bar is not None:
-                    bar.set_description(f"{scenario} / {name}")
-                rows.extend(_run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs, bar))
+                for opponent, overrides in cells:
+                    row = name if opponent is None else f"{name} vs {opponent}"
+                    if bar is not None:
+                        bar.set_description(f"{scenario} / {row}")
+                    kwargs = dict(env_kwargs)
+                    if overrides:
+                        kwargs["overrides"] = {**(env_kwargs.get("overrides") or {}), **dict(overrides)}
+                    rows.extend(_run(scenario, row, policy, episodes, seed, max_cycles, connect, kwargs, bar))
     finally:
         if bar is not None:
             bar.close()
     markdown, csv, differences_csv, episodes_csv, document = _core.eval_report(rows, reference, int(bootstrap))
     parsed = json.loads(document)
+    crossplay = None
+    if opponents:
+        table, matrix = _core.crossplay_report(rows, scenarios, [name for name, _ in named], int(bootstrap))
+        crossplay = Crossplay(markdown=table, cells=matrix)
     result = Evaluation(
         markdown=markdown,
         summaries=parsed["summaries"],
@@ -220,7 +259,9 @@ def evaluate(
             "differences.csv": differences_csv,
             "episodes.csv": episodes_csv,
             "results.json": document,
+            **({"crossplay.md": crossplay.markdown} if crossplay else {}),
         },
+        crossplay=crossplay,
     )
     if out is not None:
         result.write(out)

@@ -395,45 +395,6 @@ impl SideGame {
 /// AC's cells computed at once (`f64x4`).
 const LANES: usize = 4;
 
-/// EC's lane-keeping rows, by acceleration, as the first side's game computed them: keeping
-/// its lane, EC's predicted path and its cost (eq. 10: no lateral term, no AC) are the
-/// same function of the same inputs in the left game and the right one, so the second
-/// reads them (the same bits) instead of computing them again.
-#[derive(Default)]
-struct KeepingRows {
-    rows: Vec<KeepingRow>,
-}
-
-struct KeepingRow {
-    accel: f64,
-    path: Option<Vec<Kinematics>>,
-    cost: Option<f64>,
-}
-
-impl KeepingRows {
-    fn find(&self, accel: f64) -> Option<&KeepingRow> {
-        self.rows.iter().find(|row| row.accel.to_bits() == accel.to_bits())
-    }
-
-    fn entry(&mut self, accel: f64) -> &mut KeepingRow {
-        match self.rows.iter().position(|row| row.accel.to_bits() == accel.to_bits()) {
-            Some(at) => &mut self.rows[at],
-            None => {
-                self.rows.push(KeepingRow { accel, path: None, cost: None });
-                self.rows.last_mut().expect("just pushed")
-            }
-        }
-    }
-
-    fn path(&self, accel: f64) -> Option<&[Kinematics]> {
-        self.find(accel).and_then(|row| row.path.as_deref())
-    }
-
-    fn cost(&self, accel: f64) -> Option<f64> {
-        self.find(accel).and_then(|row| row.cost)
-    }
-}
-
 /// AC's cost terms that do not depend on EC's action (`Situation::ac_terms`), weighted:
 /// comfort per action; efficiency per action and sample, unless a lead-car cap
 /// (`lead_range` > 0) makes it depend on EC's position.
@@ -695,32 +656,12 @@ impl Situation {
     /// Builds the game of side `side` (eq. 16c–f / 18c–f) with AC's cost table and the
     /// cells of EC's that `needs` asks for.
     pub fn side_game(&self, side: i8, params: &DecisionParams, needs: Needs) -> SideGame {
-        self.side_game_keeping(side, params, needs, &mut KeepingRows::default())
-    }
-
-    /// `side_game`, reading and filling `keeping`, the lane-keeping rows the other side's
-    /// game may already have computed.
-    fn side_game_keeping(
-        &self,
-        side: i8,
-        params: &DecisionParams,
-        needs: Needs,
-        keeping: &mut KeepingRows,
-    ) -> SideGame {
         let ec_actions = self.ec_actions(side, params);
         let option = self.option(side).copied();
         let adjacent = option.and_then(|o| o.adjacent);
         let grid = |ac: Adjacent| params.game.grid(ac.player.now.speed, ac.player.bounds, self.period, &params.jerk);
         let ac_actions = adjacent.map_or(vec![0.0], grid);
-        self.side_game_sharing(side, ec_actions, ac_actions, params, needs, keeping)
-    }
-
-    /// Both sides' games as `decide` builds them: the right one reading the lane-keeping
-    /// rows the left one computed.
-    #[cfg(test)]
-    pub(super) fn side_games_sharing(&self, params: &DecisionParams, needs: Needs) -> [SideGame; 2] {
-        let mut keeping = KeepingRows::default();
-        [-1, 1].map(|side| self.side_game_keeping(side, params, needs, &mut keeping))
+        self.side_game_with(side, ec_actions, ac_actions, params, needs)
     }
 
     /// Builds side `side`'s game for the given actions (a row or column may be a single
@@ -733,21 +674,8 @@ impl Situation {
         params: &DecisionParams,
         needs: Needs,
     ) -> SideGame {
-        self.side_game_sharing(side, ec_actions, ac_actions, params, needs, &mut KeepingRows::default())
-    }
-
-    /// `side_game_with`, reading and filling `keeping_rows` (`KeepingRows`).
-    fn side_game_sharing(
-        &self,
-        side: i8,
-        ec_actions: Vec<(f64, i8)>,
-        ac_actions: Vec<f64>,
-        params: &DecisionParams,
-        needs: Needs,
-        keeping_rows: &mut KeepingRows,
-    ) -> SideGame {
         let option = self.option(side).copied();
-        let samples = self.samples(&ec_actions, &ac_actions, option.as_ref(), params, keeping_rows);
+        let samples = self.samples(&ec_actions, &ac_actions, option.as_ref(), params);
         let (rows, cols) = (ec_actions.len(), ac_actions.len());
         let mut table = PayoffTable {
             rows,
@@ -827,10 +755,7 @@ impl Situation {
             };
             table.replies.push(reply);
             if sigma == 0 {
-                let own = keeping_rows
-                    .cost(accel)
-                    .unwrap_or_else(|| self.ec_entry(&cell, row, 0, accel, sigma).weighted_by(&self.ego.weights));
-                keeping_rows.entry(accel).cost = Some(own);
+                let own = self.ec_entry(&cell, row, 0, accel, sigma).weighted_by(&self.ego.weights);
                 table.ec[row * cols..(row + 1) * cols].fill(own);
                 keep_best = keep_best.min(own);
             }
@@ -873,7 +798,6 @@ impl Situation {
         ac_actions: &[f64],
         option: Option<&LaneOption>,
         params: &DecisionParams,
-        keeping: &mut KeepingRows,
     ) -> Samples {
         let p = &params.prediction;
         let durations: Vec<f64> =
@@ -882,18 +806,12 @@ impl Situation {
             .iter()
             .zip(&durations)
             .map(|(&(accel, sigma), &duration)| {
-                if let Some(path) = keeping.path(accel).filter(|_| sigma == 0) {
-                    return path.to_vec();
-                }
                 let mut out = Vec::new();
                 let target = self.option(sigma).unwrap_or(&self.keep);
                 let bounds = self.ego_bounds(target, &params.game);
                 let path = (sigma != 0).then(|| self.lane_change_path(target, duration));
                 let ramp = params.jerk.ramp(self.ego.accel, accel);
                 prediction::predict(p, self.ego.now, ramp, bounds, path.as_ref(), &mut out);
-                if sigma == 0 {
-                    keeping.entry(accel).path = Some(out.clone());
-                }
                 out
             })
             .collect();
@@ -1136,7 +1054,7 @@ impl Situation {
         let ac_accel = game.ac_actions[profile.col];
         let ec_actions = vec![(accel, sigma)];
         let ac_actions = vec![ac_accel];
-        let samples = self.samples(&ec_actions, &ac_actions, game.option.as_ref(), params, &mut KeepingRows::default());
+        let samples = self.samples(&ec_actions, &ac_actions, game.option.as_ref(), params);
         let cell = Cell { samples: &samples, option: game.option.as_ref(), params };
         let _ = ac_accel;
         self.ec_entry(&cell, 0, 0, accel, sigma)
@@ -1152,9 +1070,8 @@ impl Situation {
     /// the whole tables, the reference the fast search is tested against).
     pub fn decide_reading(&self, game: Game, params: &DecisionParams, needs: Needs) -> Decision {
         let mut best: Option<(f64, SideGame, Profile)> = None;
-        let mut keeping = KeepingRows::default();
         for side in [-1, 1] {
-            let side_game = self.side_game_keeping(side, params, needs, &mut keeping);
+            let side_game = self.side_game(side, params, needs);
             if side_game.ec_actions.is_empty() {
                 continue;
             }

@@ -188,7 +188,9 @@ pub fn league_markdown(league: &League, summaries: &[Summary], rank: &str) -> Re
         figure.heading,
         if sign < 0.0 { "higher is better" } else { "lower is better" },
     );
-    let shown = ["success", "at_fault", "return"].map(|key| figure_index(key).unwrap_or(0));
+    // Beside the ranked figure, these, less the ranked one (no column twice).
+    let shown: Vec<usize> =
+        ["success", "at_fault", "return"].iter().filter_map(|key| figure_index(key)).filter(|&j| j != k).collect();
     for scenario in &s.scenarios {
         let mut rows: Vec<&Summary> = summaries.iter().filter(|x| &x.scenario == scenario).collect();
         if rows.is_empty() {
@@ -199,10 +201,12 @@ pub fn league_markdown(league: &League, summaries: &[Summary], rank: &str) -> Re
         for &j in &shown {
             let _ = write!(out, " {} |", FIGURES[j].heading);
         }
-        out.push_str("\n|---:|---|---:|---:|---:|---:|\n");
+        out.push_str("\n|---:|---|---:|");
+        out.push_str(&"---:|".repeat(shown.len()));
+        out.push('\n');
         for (place, row) in rows.iter().enumerate() {
             let _ = write!(out, "| {} | {} |", place + 1, row.policy);
-            for j in std::iter::once(k).chain(shown) {
+            for j in std::iter::once(k).chain(shown.iter().copied()) {
                 let (value, low, high) = ranked_value(row, j);
                 let show = if FIGURES[j].rate { |v: f64| format!("{} %", percent(v)) } else { number };
                 let cell = if row.distinct == 1 || low == high {

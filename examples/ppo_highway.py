@@ -58,6 +58,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes (default 10)")
     parser.add_argument("--save", help="write the trained model to this .zip file")
     parser.add_argument("--no-normalize", action="store_true", help="train on the raw rewards (no VecNormalize)")
+    parser.add_argument("--ent-coef", type=float, default=0.0, help="PPO's entropy bonus (default 0, SB3's)")
     parser.add_argument(
         "--override",
         action="append",
@@ -73,7 +74,7 @@ def main() -> None:
         if not args.no_normalize:
             vec = VecNormalize(vec, norm_obs=False, norm_reward=True)
         set_random_seed(0)
-        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, seed=0, verbose=0)
+        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, ent_coef=args.ent_coef, seed=0, verbose=0)
         report("before training", model, args.scenario, connect, args.episodes, overrides)
         started = time.perf_counter()
         model.learn(total_timesteps=args.timesteps, progress_bar=False)

@@ -125,7 +125,10 @@ fn retarget(request: &mut Request, pick: u8, live: &mut [Live]) -> Option<usize>
             }
             None
         }
-        RequestBody::Render { env, .. } | RequestBody::State { env } | RequestBody::Specs { env } => {
+        RequestBody::Render { env, .. }
+        | RequestBody::State { env }
+        | RequestBody::Specs { env }
+        | RequestBody::Record { env, .. } => {
             point(env, None);
             None
         }

@@ -110,7 +110,8 @@ pub fn check(request: &Request) -> Result<(), BoundError> {
         | RequestBody::Render { .. }
         | RequestBody::State { .. }
         | RequestBody::Specs { .. }
-        | RequestBody::Close { .. } => Ok(()),
+        | RequestBody::Close { .. }
+        | RequestBody::Record { .. } => Ok(()),
     }
 }
 

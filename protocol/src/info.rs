@@ -89,7 +89,7 @@ impl Info {
 
 /// Why an agent's episode ended (`END_REASON`, as its code).
 #[repr(i64)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum EndReason {
     /// Not ended.
     Running = 0,

@@ -16,6 +16,8 @@
 //!   sets of choices, each with `ALL`, `name`, `Display` and `FromStr`.
 //! - [`bounds`]: the size of every string and list a request may carry.
 //! - [`Space`]: Box, Discrete and Dict specs, with checks for observations and actions.
+//! - [`WorldStart`] / [`WorldFrame`]: the world as a recording sees it (road geometry in
+//!   world coordinates, every vehicle per control period), carried while recording is on.
 //! - [`ErrorReply`]: a stable [`ErrorCode`], a message for people, and whether the env
 //!   survives.
 //! - `session` (feature `session`): connection flags turned into a `zenoh::Config`.
@@ -45,6 +47,7 @@ mod names;
 #[cfg(feature = "session")]
 pub mod session;
 mod spaces;
+mod world;
 
 pub use codec::{MAX_MESSAGE_BYTES, decode, encode, peek_version};
 pub use error::{DecodeError, ErrorCode, ErrorReply, KeyError};
@@ -52,10 +55,16 @@ pub use info::{EndReason, Info, InfoKind, InfoValue};
 pub use messages::*;
 pub use names::UnknownName;
 pub use spaces::{DType, Space};
+pub use world::{
+    CollisionEvent, DriverInfo, Fault, GtRole, LaneGeometry, RoadGeometry, VehicleFrame, VehicleInfo, WorldFrame,
+    WorldStart,
+};
 
 /// The protocol version every message carries first; bumped on any incompatible change
 /// (3: client liveliness tokens carry `ClientId::tag`, and the server id is its Zenoh id;
 /// 4: `ServerInfo::yours`, and requests of a named user travel on `keys::user_rpc`;
 /// 5: one row per agent in step and reset replies, `ResetOptions`, infos of one fixed
-/// schema with no strings, `info::SCHEMA`).
-pub const PROTOCOL_VERSION: u16 = 6;
+/// schema with no strings, `info::SCHEMA`; 6: `collision_with`, `at_fault` and the jerk
+/// figures in infos; 7: recordings, `CreateOptions::record`, `RequestBody::Record`, the
+/// world in reset and step replies, `world`).
+pub const PROTOCOL_VERSION: u16 = 7;

@@ -10,6 +10,7 @@ use crate::error::ErrorReply;
 use crate::info::Info;
 use crate::names::named;
 use crate::spaces::Space;
+use crate::world::{WorldFrame, WorldStart};
 
 macro_rules! hex_id {
     ($name:ident, $what:literal) => {
@@ -129,6 +130,15 @@ pub enum RequestBody {
         /// The env.
         env: EnvId,
     },
+    /// Turn recording on or off (version 7): while on, reset replies carry a
+    /// `WorldStart` and step replies a `WorldFrame` per control period. Setting what is
+    /// already set changes nothing, so a resent request is harmless.
+    Record {
+        /// The env.
+        env: EnvId,
+        /// On or off.
+        on: bool,
+    },
 }
 
 /// One env's step within a `StepBatch`.
@@ -188,6 +198,10 @@ pub struct CreateOptions {
     /// Add to every info the game-theoretic cars' solver counts (`gt.<car>.plans`,
     /// `.qp_iterations`, `.qp_iterations_total`, `.fallbacks`, `.inexact`).
     pub diagnostics: bool,
+    /// Record from the start (version 7): reset replies carry a `WorldStart`, step
+    /// replies a `WorldFrame` per control period (`RequestBody::Record` turns it on or
+    /// off later).
+    pub record: bool,
 }
 
 /// A driver the server has, in a learner's place.
@@ -396,6 +410,9 @@ pub enum ReplyBody {
     Closed,
     /// To anything that failed.
     Error(ErrorReply),
+    /// To `Record`: turned on after a reset, the world now (road, vehicles, a frame), so
+    /// a recording can begin mid-episode; `None` when turned off or before any reset.
+    Recording(Option<Box<WorldStart>>),
 }
 
 /// One env's result within a batch.
@@ -531,6 +548,8 @@ pub struct ResetReply {
     pub seq: u64,
     /// Per agent.
     pub agents: Vec<AgentStart>,
+    /// While recording: the road, the vehicles and the first frame (version 7).
+    pub world: Option<Box<WorldStart>>,
 }
 
 /// One agent's results of a step.
@@ -560,6 +579,9 @@ pub struct StepReply {
     pub steps: Vec<AgentStep>,
     /// Agents live after the step.
     pub agents: Vec<String>,
+    /// While recording: the world at the end of each control period of the step (and at
+    /// its end, if that falls between two), in time order; empty otherwise (version 7).
+    pub world: Vec<WorldFrame>,
 }
 
 /// A rendered frame.
@@ -581,11 +603,63 @@ pub enum Frame {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::EndReason;
     use crate::PROTOCOL_VERSION;
     use crate::codec::{decode, encode, peek_version};
     use crate::error::ErrorCode;
     use crate::info::InfoValue;
     use crate::spaces::DType;
+    use crate::world::{
+        CollisionEvent, DriverInfo, Fault, GtRole, LaneGeometry, RoadGeometry, VehicleFrame, VehicleInfo,
+    };
+
+    fn frame(time: f64) -> WorldFrame {
+        let vehicle = VehicleFrame {
+            x: 12.5,
+            y: -3.5,
+            heading: 0.01,
+            s: 12.0,
+            d: -3.5,
+            speed: 22.0,
+            accel: -0.5,
+            lane: 1,
+            target_lane: 0,
+            end: EndReason::Running,
+        };
+        WorldFrame {
+            time,
+            vehicles: vec![vehicle, VehicleFrame { end: EndReason::LaneEnd, lane: 2, ..vehicle }],
+            collisions: vec![CollisionEvent { time, rear: 0, front: 1, at_fault: Fault::Both, x: 1.0, y: -2.0 }],
+        }
+    }
+
+    fn world_start() -> Box<WorldStart> {
+        let lane = LaneGeometry {
+            centre: vec![[0.0, 0.0], [100.0, 0.0]],
+            left: vec![[0.0, 2.0], [100.0, 2.0]],
+            right: vec![[0.0, -2.0], [100.0, -2.0]],
+            end: 100.0,
+            ends_early: true,
+            speed_limit: 25.0,
+        };
+        let info = |name: &str, driver| VehicleInfo {
+            name: name.into(),
+            learner: driver == DriverInfo::Learner,
+            driver,
+            style: Style::Aggressive,
+            length: 5.0,
+            width: 2.0,
+        };
+        Box::new(WorldStart {
+            road: RoadGeometry { length: 1000.0, lane_width: 4.0, lanes: vec![lane] },
+            vehicles: vec![
+                info("ego", DriverInfo::Learner),
+                info("ac", DriverInfo::Gt { game: Game::Nash, role: GtRole::Follower }),
+                info("t0", DriverInfo::Idm),
+            ],
+            frame: frame(0.0),
+        })
+    }
 
     fn observation() -> Observation {
         Observation::Dict(vec![
@@ -645,7 +719,12 @@ mod tests {
                 },
             ],
             agents: vec![],
+            world: vec![],
         }
+    }
+
+    fn recorded_step_reply() -> StepReply {
+        StepReply { world: vec![frame(0.1), frame(0.2)], agents: vec!["ego".into()], ..step_reply() }
     }
 
     fn requests() -> Vec<RequestBody> {
@@ -666,6 +745,7 @@ mod tests {
                     expert: Some(Game::Stackelberg),
                     policy: Some(BuiltinPolicy::Gt { style: Some(Style::Conservative), game: Game::Nash }),
                     diagnostics: true,
+                    record: true,
                 },
             },
             RequestBody::CreateEnv {
@@ -706,6 +786,8 @@ mod tests {
             RequestBody::State { env },
             RequestBody::Specs { env },
             RequestBody::Close { env },
+            RequestBody::Record { env, on: true },
+            RequestBody::Record { env, on: false },
         ]
     }
 
@@ -729,8 +811,11 @@ mod tests {
             ReplyBody::Reset(ResetReply {
                 seq: 1,
                 agents: vec![AgentStart { agent: "ego".into(), observation: observation(), info: Info::default() }],
+                world: None,
             }),
+            ReplyBody::Reset(ResetReply { seq: 2, agents: vec![], world: Some(world_start()) }),
             ReplyBody::Step(step_reply()),
+            ReplyBody::Step(recorded_step_reply()),
             ReplyBody::StepBatch(vec![BatchItem::Ok(step_reply()), BatchItem::Err(error.clone())]),
             ReplyBody::Render(Frame::Rgb { height: 1, width: 2, pixels: vec![1, 2, 3, 4, 5, 6] }),
             ReplyBody::Render(Frame::Ansi("..@..".into())),
@@ -739,6 +824,8 @@ mod tests {
             ReplyBody::Specs(specs()),
             ReplyBody::Closed,
             ReplyBody::Error(error),
+            ReplyBody::Recording(Some(world_start())),
+            ReplyBody::Recording(None),
         ]
     }
 
@@ -789,14 +876,14 @@ mod tests {
 
     #[test]
     fn every_variant_is_covered_by_the_round_trips() {
-        // Variant indexes in the fixtures: requests 0..=8, replies 0..=9 (the byte after
+        // Variant indexes in the fixtures: requests 0..=9, replies 0..=10 (the byte after
         // the one-byte version and, for requests, the client id).
         let request_variants: std::collections::BTreeSet<u8> =
             requests().into_iter().map(|body| encode(&Request::new(ClientId(1), body))[2]).collect();
-        assert_eq!(request_variants, (0..=8).collect());
+        assert_eq!(request_variants, (0..=9).collect());
         let reply_variants: std::collections::BTreeSet<u8> =
             replies().into_iter().map(|body| encode(&Reply::new(body))[1]).collect();
-        assert_eq!(reply_variants, (0..=9).collect());
+        assert_eq!(reply_variants, (0..=10).collect());
     }
 
     #[test]

@@ -81,6 +81,8 @@ mod tests {
         round_trips(&Style::ALL);
         round_trips(&Game::ALL);
         round_trips(&EndReason::ALL);
+        round_trips(&crate::GtRole::ALL);
+        round_trips(&crate::Fault::ALL);
         let error = "sideways".parse::<MetaAction>().unwrap_err().to_string();
         assert_eq!(error, "unknown meta action 'sideways': use one of lane_left, idle, lane_right, faster, slower");
         assert_eq!("nash".parse::<Game>(), Ok(Game::Nash));

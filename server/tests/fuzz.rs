@@ -28,6 +28,7 @@ fn seeds() -> Vec<Vec<u8>> {
         }),
         request(RequestBody::Reset { env: EnvId(3), seq: 1, seed: Some(4), options: ResetOptions::default() }),
         request(RequestBody::Step { env: EnvId(3), seq: 2, actions: vec![("ec_0".into(), Action::Meta(3))] }),
+        request(RequestBody::Record { env: EnvId(3), on: true }),
     ]
 }
 
@@ -62,7 +63,10 @@ fn answered(registry: &Registry, bytes: &[u8]) {
                 (RequestBody::StepBatch { .. } | RequestBody::Close { .. }, ReplyBody::Error(e))
                 | (RequestBody::Reset { .. } | RequestBody::Step { .. }, ReplyBody::Error(e))
                 | (
-                    RequestBody::Render { .. } | RequestBody::State { .. } | RequestBody::Specs { .. },
+                    RequestBody::Render { .. }
+                    | RequestBody::State { .. }
+                    | RequestBody::Specs { .. }
+                    | RequestBody::Record { .. },
                     ReplyBody::Error(e),
                 ) => {
                     matches!(e.code, ErrorCode::UnknownEnv | ErrorCode::PayloadTooLarge | ErrorCode::MalformedRequest)

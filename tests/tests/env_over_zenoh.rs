@@ -50,6 +50,23 @@ async fn agents_leave_at_once_and_never_return() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_recording_env_sends_the_world_and_stops_when_told() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let mut env = harness.env_with(&client, "merge", CreateOptions::default()).await;
+    assert!(env.record(true).await.unwrap().is_none(), "nothing to show before a reset");
+    let start = env.reset(Some(0), vec![]).await.unwrap().world.expect("recording: the world on reset");
+    assert_eq!(start.vehicles.len(), 2);
+    let step = env.step(meta("ec_0", 1)).await.unwrap();
+    assert_eq!(step.world.len(), 1);
+    assert_eq!(step.world[0].vehicles.len(), 2);
+    assert!(env.record(false).await.unwrap().is_none());
+    assert!(env.step(meta("ec_0", 1)).await.unwrap().world.is_empty());
+    let now = env.record(true).await.unwrap().expect("the world now");
+    assert!((now.frame.time - 0.2).abs() < 1e-9, "{}", now.frame.time);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn missing_action_is_idle() {
     let harness = common::start().await;
     let client = harness.client().await;

@@ -1,8 +1,10 @@
 //! `highway_arena._core`: the Rust client (`arena_client::blocking`) seen from Python.
 //! It moves wire types into plain Python values — observations as (dtype, shape, bytes)
 //! so the Python side builds fresh numpy arrays, spaces as dicts, infos as dicts — and
-//! releases the GIL while it waits on the network. The PettingZoo and Gymnasium classes
-//! live in the Python package on top (python/highway_arena).
+//! releases the GIL while it waits on the network. While recording, the world's frames
+//! that replies carry are kept per env until Python takes them (`take_world`), as columns
+//! of (dtype, shape, bytes). The PettingZoo and Gymnasium classes live in the Python
+//! package on top (python/highway_arena).
 
 use std::sync::Mutex;
 
@@ -13,7 +15,7 @@ use arena_protocol::keys::DEFAULT_PREFIX;
 use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
     Action, ActionType, BuiltinPolicy, EndReason, Frame, Game, Info, InfoValue, MetaAction, Observation,
-    ObservationKind, RenderMode, Space, StepReply, Tensor, TensorData,
+    ObservationKind, RenderMode, Space, StepReply, Tensor, TensorData, WorldFrame, WorldStart,
 };
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -110,7 +112,7 @@ impl Client {
 
     /// Creates an env: `scenario` names one on the server, or `text` is a scenario
     /// file's TOML (then `scenario` names it in error messages).
-    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None, policy = None, diagnostics = false))]
+    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None, policy = None, diagnostics = false, record = false))]
     #[allow(clippy::too_many_arguments)]
     fn create_env(
         &self,
@@ -126,6 +128,7 @@ impl Client {
         expert: Option<String>,
         policy: Option<String>,
         diagnostics: bool,
+        record: bool,
     ) -> PyResult<Env> {
         let overrides = overrides
             .into_iter()
@@ -139,10 +142,24 @@ impl Client {
             Some(text) => ScenarioSource::Inline { file_name: scenario, text },
             None => ScenarioSource::Named(scenario),
         };
-        let options =
-            CreateOptions { overrides, action_type, observation, max_cycles, render_size, expert, policy, diagnostics };
+        let options = CreateOptions {
+            overrides,
+            action_type,
+            observation,
+            max_cycles,
+            render_size,
+            expert,
+            policy,
+            diagnostics,
+            record,
+        };
         let env = py.detach(|| self.inner.create_env(&server, source, options)).map_err(to_py_err)?;
-        Ok(Env { specs: env.specs().clone(), server: env.server().to_string(), inner: Mutex::new(Some(env)) })
+        Ok(Env {
+            specs: env.specs().clone(),
+            server: env.server().to_string(),
+            inner: Mutex::new(Some(env)),
+            world: Mutex::default(),
+        })
     }
 
     /// Steps many envs of this client in one round trip; returns, per env, a step result
@@ -182,8 +199,12 @@ impl Client {
         let results = results.ok_or_else(closed_error)?.map_err(to_py_err)?;
         results
             .into_iter()
-            .map(|result| match result {
-                Ok(reply) => step_tuple(py, reply).map(|t| t.into_any().unbind()),
+            .zip(&envs)
+            .map(|(result, env)| match result {
+                Ok(mut reply) => {
+                    lock(&env.world).frames.append(&mut reply.world);
+                    step_tuple(py, reply).map(|t| t.into_any().unbind())
+                }
                 Err(error) => Ok(to_py_err(error).into_value(py).into_any()),
             })
             .collect()
@@ -459,6 +480,122 @@ struct Env {
     /// `None` once closed. Locked only with the GIL released: a thread waiting for the
     /// lock never holds the GIL, and the thread holding it never waits for the GIL.
     inner: Mutex<Option<BlockingEnv>>,
+    /// What recording replies brought since Python last took it (`take_world`). Held
+    /// only for a moment, never across a wait.
+    world: Mutex<PendingWorld>,
+}
+
+/// One column of a vehicle frame, by name.
+type FrameColumn<T> = (&'static str, fn(&arena_protocol::VehicleFrame) -> T);
+/// `take_world`'s (start, frames).
+type WorldDicts<'py> = (Option<Bound<'py, PyDict>>, Option<Bound<'py, PyDict>>);
+
+/// A reset's `WorldStart` and the frames of the steps since.
+#[derive(Default)]
+struct PendingWorld {
+    start: Option<Box<WorldStart>>,
+    frames: Vec<WorldFrame>,
+}
+
+fn column<'py, T: Copy>(
+    py: Python<'py>,
+    dtype: &str,
+    shape: &[usize],
+    values: impl Iterator<Item = T>,
+    bytes: impl Fn(T) -> [u8; 8],
+) -> PyResult<Bound<'py, PyTuple>> {
+    let data: Vec<u8> = values.flat_map(bytes).collect();
+    let shape = PyTuple::new(py, shape.iter().copied())?;
+    PyTuple::new(py, [dtype.into_pyobject(py)?.into_any(), shape.into_any(), PyBytes::new(py, &data).into_any()])
+}
+
+/// Frames as columns: `time` (F,), and per vehicle (F, V) `x`, `y`, `heading`, `s`, `d`,
+/// `speed`, `accel` (float64), `lane`, `target_lane`, `end` (int64, an `END_REASONS`
+/// code); `collisions` a list of dicts.
+fn frames_dict<'py>(py: Python<'py>, frames: &[WorldFrame]) -> PyResult<Bound<'py, PyDict>> {
+    let count = frames.first().map_or(0, |f| f.vehicles.len());
+    if frames.iter().any(|f| f.vehicles.len() != count) {
+        return Err(ArenaError::new_err(("Protocol", "frames of one reply with different numbers of vehicles")));
+    }
+    let dict = PyDict::new(py);
+    let shape = [frames.len(), count];
+    dict.set_item("time", column(py, "float64", &shape[..1], frames.iter().map(|f| f.time), f64::to_le_bytes)?)?;
+    let all = || frames.iter().flat_map(|f| f.vehicles.iter());
+    let floats: [FrameColumn<f64>; 7] = [
+        ("x", |v| v.x),
+        ("y", |v| v.y),
+        ("heading", |v| v.heading),
+        ("s", |v| v.s),
+        ("d", |v| v.d),
+        ("speed", |v| v.speed),
+        ("accel", |v| v.accel),
+    ];
+    for (key, get) in floats {
+        dict.set_item(key, column(py, "float64", &shape, all().map(get), f64::to_le_bytes)?)?;
+    }
+    let ints: [FrameColumn<i64>; 3] =
+        [("lane", |v| i64::from(v.lane)), ("target_lane", |v| i64::from(v.target_lane)), ("end", |v| v.end.code())];
+    for (key, get) in ints {
+        dict.set_item(key, column(py, "int64", &shape, all().map(get), i64::to_le_bytes)?)?;
+    }
+    let collisions = PyList::empty(py);
+    for event in frames.iter().flat_map(|f| f.collisions.iter()) {
+        let item = PyDict::new(py);
+        item.set_item("time", event.time)?;
+        item.set_item("rear", event.rear)?;
+        item.set_item("front", event.front)?;
+        item.set_item("at_fault", event.at_fault.name())?;
+        item.set_item("x", event.x)?;
+        item.set_item("y", event.y)?;
+        collisions.append(item)?;
+    }
+    dict.set_item("collisions", collisions)?;
+    Ok(dict)
+}
+
+/// The road (lanes as (n, 2) float64 polylines), the vehicles and the first frame.
+fn start_dict<'py>(py: Python<'py>, start: &WorldStart) -> PyResult<Bound<'py, PyDict>> {
+    let line = |points: &[[f64; 2]]| {
+        column(py, "float64", &[points.len(), 2], points.iter().flatten().copied(), f64::to_le_bytes)
+    };
+    let lanes = PyList::empty(py);
+    for lane in &start.road.lanes {
+        let item = PyDict::new(py);
+        item.set_item("centre", line(&lane.centre)?)?;
+        item.set_item("left", line(&lane.left)?)?;
+        item.set_item("right", line(&lane.right)?)?;
+        item.set_item("end", lane.end)?;
+        item.set_item("ends_early", lane.ends_early)?;
+        item.set_item("speed_limit", lane.speed_limit)?;
+        lanes.append(item)?;
+    }
+    let road = PyDict::new(py);
+    road.set_item("length", start.road.length)?;
+    road.set_item("lane_width", start.road.lane_width)?;
+    road.set_item("lanes", lanes)?;
+    let vehicles = PyList::empty(py);
+    for vehicle in &start.vehicles {
+        let item = PyDict::new(py);
+        item.set_item("name", &vehicle.name)?;
+        item.set_item("learner", vehicle.learner)?;
+        let (driver, game, role) = match vehicle.driver {
+            arena_protocol::DriverInfo::Learner => ("learner", None, None),
+            arena_protocol::DriverInfo::Idm => ("idm", None, None),
+            arena_protocol::DriverInfo::Gt { game, role } => ("gt", Some(game.name()), Some(role.name())),
+        };
+        item.set_item("driver", driver)?;
+        item.set_item("game", game)?;
+        item.set_item("role", role)?;
+        item.set_item("style", vehicle.style.name())?;
+        item.set_item("length", vehicle.length)?;
+        item.set_item("width", vehicle.width)?;
+        vehicles.append(item)?;
+    }
+    let dict = PyDict::new(py);
+    dict.set_item("road", road)?;
+    dict.set_item("vehicles", vehicles)?;
+    dict.set_item("frame", frames_dict(py, std::slice::from_ref(&start.frame))?)?;
+    Ok(dict)
 }
 
 impl Env {
@@ -512,7 +649,8 @@ impl Env {
             let value = option_value(&key, &value)?;
             parsed.push((key, value));
         }
-        let reply = self.with(py, move |env| env.reset(seed, parsed))?;
+        let mut reply = self.with(py, move |env| env.reset(seed, parsed))?;
+        *lock(&self.world) = PendingWorld { start: reply.world.take(), frames: Vec::new() };
         let (observations, infos) = (PyDict::new(py), PyDict::new(py));
         for start in &reply.agents {
             observations.set_item(&start.agent, observation_value(py, &start.observation)?)?;
@@ -524,8 +662,27 @@ impl Env {
     /// (observations, rewards, terminations, truncations, infos, agents).
     fn step<'py>(&self, py: Python<'py>, actions: Bound<'py, PyDict>) -> PyResult<Bound<'py, PyTuple>> {
         let actions = parse_actions(&actions)?;
-        let reply = self.with(py, move |env| env.step(actions))?;
+        let mut reply = self.with(py, move |env| env.step(actions))?;
+        lock(&self.world).frames.append(&mut reply.world);
         step_tuple(py, reply)
+    }
+
+    /// Turns recording on or off on the server; turned on after a reset, returns the
+    /// world now (as `take_world`'s start), else None.
+    fn record<'py>(&self, py: Python<'py>, on: bool) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let start = self.with(py, move |env| env.record(on))?;
+        *lock(&self.world) = PendingWorld::default();
+        start.map(|start| start_dict(py, &start)).transpose()
+    }
+
+    /// (start, frames) that recording replies brought since the last call: the last
+    /// reset's road, vehicles and first frame (or None), and the steps' frames as
+    /// columns (or None when there are none).
+    fn take_world<'py>(&self, py: Python<'py>) -> PyResult<WorldDicts<'py>> {
+        let pending = std::mem::take(&mut *lock(&self.world));
+        let start = pending.start.map(|start| start_dict(py, &start)).transpose()?;
+        let frames = (!pending.frames.is_empty()).then(|| frames_dict(py, &pending.frames)).transpose()?;
+        Ok((start, frames))
     }
 
     /// ("rgb", height, width, bytes) or ("ansi", text).
@@ -569,6 +726,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("DEFAULT_PREFIX", DEFAULT_PREFIX)?;
     m.add("DEFAULT_TIMEOUT", DEFAULT_TIMEOUT)?;
     m.add("DEFAULT_CONNECT_TIMEOUT", DEFAULT_CONNECT_TIMEOUT)?;
+    m.add("PROTOCOL_VERSION", arena_protocol::PROTOCOL_VERSION)?;
     // The protocol's vocabulary, written once in arena-protocol.
     m.add("END_REASONS", EndReason::ALL.map(EndReason::name).to_vec())?;
     m.add("META_ACTIONS", MetaAction::ALL.map(MetaAction::name).to_vec())?;

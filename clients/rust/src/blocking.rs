@@ -131,6 +131,11 @@ impl Env {
         self.client.runtime.block_on(self.env.state())
     }
 
+    /// See `crate::RemoteEnv::record`.
+    pub fn record(&self, on: bool) -> Result<Option<arena_protocol::WorldStart>> {
+        self.client.runtime.block_on(self.env.record(on))
+    }
+
     /// See `crate::RemoteEnv::close`.
     pub fn close(&mut self) -> Result<()> {
         self.client.runtime.block_on(self.env.close())

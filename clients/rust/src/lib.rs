@@ -1,6 +1,7 @@
 //! Rust client of highway-arena: find servers by Zenoh liveliness, place envs across them,
-//! and reset, step (one env or a batch in one round trip), render, read state and close
-//! them, with timeouts and safe retries.
+//! and reset, step (one env or a batch in one round trip), render, read state, record
+//! (reset and step replies then carry the world's frames) and close them, with timeouts
+//! and safe retries.
 //!
 //! `Client` is async (it needs a tokio multi-thread runtime, as Zenoh does);
 //! `blocking::Client` wraps it with its own runtime for callers that are not async, such
@@ -34,7 +35,7 @@ use std::time::{Duration, Instant};
 pub use arena_protocol::{
     Action, AgentStart, AgentStep, BatchItem, BatchStep, CreateOptions, EndReason, EnvId, EnvSpecs, ErrorCode,
     ErrorReply, Frame, Info, InfoValue, MetaAction, Observation, OptionValue, RenderMode, ResetReply, ScenarioSource,
-    ServerInfo, StepReply,
+    ServerInfo, StepReply, WorldFrame, WorldStart,
 };
 use arena_protocol::{
     ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetOptions, decode, encode, keys,
@@ -467,6 +468,7 @@ fn request_name(body: &RequestBody) -> &'static str {
         RequestBody::State { .. } => "state",
         RequestBody::Specs { .. } => "specs",
         RequestBody::Close { .. } => "close",
+        RequestBody::Record { .. } => "record",
     }
 }
 
@@ -541,6 +543,16 @@ impl RemoteEnv {
         match self.client.call(&self.server, RequestBody::State { env: self.id }, true).await? {
             ReplyBody::State(state) => Ok(state),
             other => Err(unexpected("State", &other)),
+        }
+    }
+
+    /// Turns recording on or off: while on, reset replies carry a `WorldStart` and step
+    /// replies a `WorldFrame` per control period. Turned on after a reset, it returns the
+    /// world now (road, vehicles, a frame), so a recording can begin mid-episode.
+    pub async fn record(&self, on: bool) -> Result<Option<WorldStart>> {
+        match self.client.call(&self.server, RequestBody::Record { env: self.id, on }, true).await? {
+            ReplyBody::Recording(start) => Ok(start.map(|start| *start)),
+            other => Err(unexpected("Recording", &other)),
         }
     }
 

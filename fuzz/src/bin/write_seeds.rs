@@ -75,6 +75,7 @@ fn requests() -> Vec<(&'static str, u8, Vec<u8>)> {
         ("render-rgb", 2, request(RequestBody::Render { env, mode: RenderMode::RgbArray })),
         ("state", 0, request(RequestBody::State { env })),
         ("specs", 0, request(RequestBody::Specs { env })),
+        ("record", 0, request(RequestBody::Record { env, on: true })),
         ("close", 0, request(RequestBody::Close { env })),
     ]
 }

@@ -170,6 +170,11 @@ impl Road {
         self.lane_width
     }
 
+    /// The reference line's sections, in order from its start.
+    pub fn sections(&self) -> &[Section] {
+        &self.sections
+    }
+
     /// Length of the reference line (m).
     pub fn length(&self) -> f64 {
         self.length

@@ -8,13 +8,16 @@
 //! A step runs in phases, as highway-env's `AbstractEnv.step` does, each in its own
 //! module: check and apply the actions (`action`), simulate (`simulate`: the world's
 //! ticks and the costs sampled on the way), then per agent observe (`observation`),
-//! reward (`reward`), terminate (`episode`) and info (`info`).
+//! reward (`reward`), terminate (`episode`) and info (`info`). While recording is on,
+//! `recording` assembles the world's frames for the reply (the simulate phase takes one
+//! per control period).
 
 mod action;
 mod episode;
 mod info;
 mod observation;
 mod overrides;
+mod recording;
 mod render;
 mod reward;
 mod risk;
@@ -22,7 +25,7 @@ mod simulate;
 
 use arena_protocol::{
     Action, ActionType, AgentStart, AgentStep, BuiltinPolicy, CreateOptions, EndReason, EnvSpecs, ErrorCode,
-    ErrorReply, Frame, Observation, ObservationKind, RenderMode, ResetOptions,
+    ErrorReply, Frame, Observation, ObservationKind, RenderMode, ResetOptions, WorldFrame, WorldStart,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -70,6 +73,9 @@ pub struct Env {
     policy: Option<BuiltinPolicy>,
     /// Whether infos carry the game-theoretic cars' solver counts.
     diagnostics: bool,
+    /// Whether replies carry the world's frames (`recording`).
+    recording: bool,
+    recorder: recording::Recorder,
     seeds: ChaCha8Rng,
     world: Option<World>,
     agents: Vec<AgentSlot>,
@@ -174,6 +180,8 @@ impl Env {
             expert: options.expert.map(game),
             policy: options.policy,
             diagnostics: options.diagnostics,
+            recording: options.record,
+            recorder: recording::Recorder::default(),
             seeds: ChaCha8Rng::seed_from_u64(entropy),
             world: None,
             agents,
@@ -245,6 +253,10 @@ impl Env {
             drive_learners(&mut episode, policy);
         }
         let mut world = episode.build(world_seed);
+        if self.recording {
+            recording::check_fits(world.vehicles().len(), frames_per_step(&episode, &world))?;
+            self.recorder.restart(&world);
+        }
         self.seeds = seeds;
         self.episode = episode;
         self.cycles = 0;
@@ -347,6 +359,33 @@ impl Env {
         vehicles.extend(live_before.iter().map(|&i| self.agents[i].vehicle));
     }
 
+    /// While recording, the road, the vehicles and the world now (a reset reply's).
+    pub fn world_start(&self) -> Option<WorldStart> {
+        let world = self.world.as_ref().filter(|_| self.recording)?;
+        let learners: Vec<&str> = self.agents.iter().map(|a| a.name.as_str()).collect();
+        Some(recording::start(world, &learners))
+    }
+
+    /// The frames the last step took while recording (a step reply's); empty otherwise.
+    pub fn take_frames(&mut self) -> Vec<WorldFrame> {
+        std::mem::take(&mut self.recorder.frames)
+    }
+
+    /// Turns recording on or off. Turned on after a reset, it returns the world now
+    /// (`world_start`), so a recording can begin mid-episode. A world whose frames would
+    /// not fit a reply is refused, and recording stays as it was.
+    pub fn set_recording(&mut self, on: bool) -> Result<Option<WorldStart>, ErrorReply> {
+        if on && let Some(world) = &self.world {
+            recording::check_fits(world.vehicles().len(), frames_per_step(&self.episode, world))?;
+            if !self.recording {
+                self.recorder.restart(world);
+            }
+        }
+        self.recording = on;
+        self.recorder.frames.clear();
+        Ok(self.world_start())
+    }
+
     /// The most control periods an episode can have: `max_cycles` steps of `step_dt`.
     fn control_periods(&self, world: &World) -> usize {
         let per_step = (self.episode.step_dt / world.params().control_dt).ceil() as usize;
@@ -358,7 +397,8 @@ impl Env {
         let Some(world) = self.world.as_mut() else { return };
         let StepScratch { vehicles, costs, accels, started, .. } = &mut self.scratch;
         *started = world.time();
-        simulate::advance(world, vehicles, self.episode.step_dt, costs, accels);
+        let recorder = self.recording.then_some(&mut self.recorder);
+        simulate::advance(world, vehicles, self.episode.step_dt, costs, accels, recorder);
         self.cycles += 1;
     }
 
@@ -436,6 +476,20 @@ fn game(game: arena_protocol::Game) -> Game {
         arena_protocol::Game::Nash => Game::Nash,
         arena_protocol::Game::Stackelberg => Game::Stackelberg,
     }
+}
+
+/// The model's style in the protocol's words.
+fn style_of(style: Style) -> arena_protocol::Style {
+    match style {
+        Style::Aggressive => arena_protocol::Style::Aggressive,
+        Style::Normal => arena_protocol::Style::Normal,
+        Style::Conservative => arena_protocol::Style::Conservative,
+    }
+}
+
+/// Frames a recorded step can take: one per control period, and one at its end.
+fn frames_per_step(episode: &Scenario, world: &World) -> usize {
+    (episode.step_dt / world.params().control_dt).ceil() as usize + 1
 }
 
 fn style(style: arena_protocol::Style) -> Style {

@@ -1,11 +1,13 @@
 //! The simulate phase of a step: the world advanced by one env step, tick by tick, with
 //! each agent's cost (eq. 9-14) sampled at the end of every control period it drives, so
 //! the reward and the infos read the step's mean cost and risk without another pass, and the
-//! acceleration it was commanded in each period, for the episode's jerk.
+//! acceleration it was commanded in each period, for the episode's jerk; while recording,
+//! a frame of the world at the end of each control period (`recording`).
 
 use arena_sim::CostComponents;
 use arena_sim::{Status, VehicleId, World};
 
+use super::recording::Recorder;
 use super::risk;
 
 /// The cost of one agent over one env step, sampled at the end of each control period
@@ -28,13 +30,16 @@ pub struct StepCost {
 
 /// Advances the world by `step_dt` and writes into `costs` each vehicle's mean cost over
 /// it, and into `accels` the acceleration each was commanded in every control period
-/// that ended while it drove (buffers the caller keeps: steps allocate nothing for them).
+/// that ended while it drove (buffers the caller keeps: steps allocate nothing for them);
+/// with a `recorder`, it notes every collision's tick and takes a frame where costs are
+/// sampled.
 pub fn advance(
     world: &mut World,
     vehicles: &[VehicleId],
     step_dt: f64,
     costs: &mut Vec<StepCost>,
     accels: &mut Vec<Vec<f64>>,
+    mut recorder: Option<&mut Recorder>,
 ) {
     let per_control = world.params().substeps_per_control();
     let ticks = (step_dt / world.params().physics_dt).round() as u64;
@@ -46,6 +51,9 @@ pub fn advance(
     let mut samples = 0u32;
     for tick in 0..ticks {
         world.tick();
+        if let Some(recorder) = recorder.as_deref_mut() {
+            recorder.after_tick(world);
+        }
         if (tick + 1).is_multiple_of(per_control) {
             for (commanded, &id) in accels.iter_mut().zip(vehicles) {
                 let vehicle = world.vehicle(id);
@@ -55,6 +63,9 @@ pub fn advance(
             }
         }
         if (tick + 1).is_multiple_of(per_control) || tick + 1 == ticks {
+            if let Some(recorder) = recorder.as_deref_mut() {
+                recorder.take_frame(world);
+            }
             samples += 1;
             for (sum, &id) in sums.iter_mut().zip(vehicles) {
                 if world.vehicle(id).status == Status::Driving {

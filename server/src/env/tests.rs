@@ -811,3 +811,68 @@ fn commanded_jerk_is_the_change_of_acceleration_between_control_periods() {
     let near = |key: &str| (info.number(key).unwrap() - 30.0).abs() < 1e-9;
     assert!(near("episode_max_jerk") && near("episode_p95_jerk"), "{info:?}");
 }
+
+#[test]
+fn recorded_road_geometry_follows_the_road_curves_and_ends() {
+    // overtake: a straight, then arcs; every lane line follows them in world coordinates.
+    let mut overtake = env("overtake", CreateOptions { record: true, ..CreateOptions::default() });
+    overtake.reset(Some(0), NO_OPTIONS).unwrap();
+    let start = overtake.world_start().expect("recording");
+    let world = overtake.world().unwrap();
+    let road = world.road();
+    assert_eq!(start.road.lanes.len(), road.lane_count());
+    for (i, lane) in start.road.lanes.iter().enumerate() {
+        assert_eq!(lane.centre.len(), lane.left.len());
+        assert_eq!(lane.centre.len(), lane.right.len());
+        // Each point of the centre line is the road's own point at some s, on this lane.
+        for (point, (left, right)) in lane.centre.iter().zip(lane.left.iter().zip(&lane.right)) {
+            let (_, d) = road.to_frenet(point[0], point[1]);
+            assert!((d - road.lane_center(arena_sim::LaneId(i as u32))).abs() < 1e-6, "lane {i}: d {d}");
+            let width = (left[0] - right[0]).hypot(left[1] - right[1]);
+            assert!((width - road.lane_width()).abs() < 1e-9, "lane {i}: width {width}");
+        }
+        // Consecutive chords turn: the road is curved, and it is drawn so.
+        let headings: Vec<f64> =
+            lane.centre.windows(2).map(|pair| (pair[1][1] - pair[0][1]).atan2(pair[1][0] - pair[0][0])).collect();
+        let turn = headings.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+            - headings.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(turn > 0.2, "lane {i}: the polyline turns by {turn} rad only");
+        assert!(lane.centre.len() > 20, "lane {i}: arcs sampled densely, {} points", lane.centre.len());
+        let last = lane.centre.last().unwrap();
+        let end = road.to_global(lane.end, road.lane_center(arena_sim::LaneId(i as u32)), 0.0);
+        assert!((last[0] - end.x).abs() < 1e-9 && (last[1] - end.y).abs() < 1e-9, "lane {i} ends at its end");
+    }
+    // merge: the ending lane is marked so, and it stops where the scenario says.
+    let mut merge = env("merge", CreateOptions { record: true, ..CreateOptions::default() });
+    merge.reset(Some(0), NO_OPTIONS).unwrap();
+    let start = merge.world_start().unwrap();
+    let ending: Vec<_> = start.road.lanes.iter().filter(|lane| lane.ends_early).collect();
+    assert_eq!(ending.len(), 1);
+    assert!(ending[0].end < start.road.length);
+    // Without recording there is no world to send.
+    let mut plain = env("merge", CreateOptions::default());
+    plain.reset(Some(0), NO_OPTIONS).unwrap();
+    assert!(plain.world_start().is_none());
+}
+
+#[test]
+fn a_recording_that_would_not_fit_a_reply_is_refused() {
+    // highway-gt's 51 vehicles at 11 frames a step fit; 10 000 vehicles at 11 do not.
+    assert!(recording::check_fits(51, 11).is_ok());
+    let refused = recording::check_fits(10_000, 11).unwrap_err();
+    assert_eq!(refused.code, ErrorCode::InvalidScenario);
+    assert!(refused.message.contains("10000 vehicles x 11 frames"), "{}", refused.message);
+    assert!(refused.env_usable);
+    // A reset that would record too much leaves the env as it was: a highway of 2 000
+    // cars deciding once a minute (601 frames a step) is refused, and the last episode
+    // goes on.
+    let mut env = env("highway", CreateOptions { record: true, ..CreateOptions::default() });
+    env.reset(Some(1), NO_OPTIONS).unwrap();
+    env.step(&[]).unwrap();
+    let time = env.world().unwrap().time();
+    let huge = overriding(&[("traffic.count", OptionValue::Int(2000)), ("sim.step_dt", OptionValue::Float(60.0))]);
+    let error = env.reset(Some(2), &huge).unwrap_err();
+    assert!(error.message.contains("record:"), "{}", error.message);
+    assert_eq!(env.world().unwrap().time(), time);
+    assert_eq!(env.step(&[]).unwrap().len(), 1);
+}

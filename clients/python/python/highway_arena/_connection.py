@@ -217,6 +217,7 @@ class Connection:
         scenario_text=None,
         overrides=None,
         server=None,
+        record=False,
         *,
         action_type=None,
         observation=None,
@@ -227,7 +228,8 @@ class Connection:
         diagnostics=False,
     ):
         """An env on ``server`` (default: the one picked at connection). The keyword-only
-        parameters are the env's options on the server (``ENV_OPTIONS``)."""
+        parameters are the env's options on the server (``ENV_OPTIONS``); ``record``
+        (not one of them: envs made of several do not record) has replies carry the world."""
         pairs = [(str(k), v) for k, v in (overrides or {}).items()]
         return self.client.create_env(
             server or self.server,
@@ -241,6 +243,7 @@ class Connection:
             expert=expert,
             policy=policy,
             diagnostics=bool(diagnostics),
+            record=bool(record),
         )
 
     @translated

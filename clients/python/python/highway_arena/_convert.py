@@ -30,6 +30,10 @@ def _tensor(value) -> np.ndarray:
     return np.frombuffer(data, dtype=np.dtype(dtype).newbyteorder("<")).astype(dtype).reshape(shape)
 
 
+# The extension's (dtype, shape, bytes) columns, for other modules (recordings).
+tensor = _tensor
+
+
 def observation(value):
     kind, payload = value
     if kind == "tensor":

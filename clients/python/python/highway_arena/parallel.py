@@ -6,7 +6,7 @@ import gymnasium
 import numpy as np
 from pettingzoo import ParallelEnv as _ParallelEnv
 
-from . import _convert
+from . import _convert, _core
 from ._connection import Connection, keywords, split, takes_connection_keywords
 from ._errors import InvalidActionError, ScenarioError, translated
 
@@ -81,7 +81,9 @@ class ParallelEnv(_ParallelEnv):
     ``diagnostics`` (True: infos carry every game-theoretic car's solver counts,
     ``gt.<car>.plans``, ``.qp_iterations``, ``.qp_iterations_total``, ``.fallbacks``,
     ``.inexact``), ``seed`` (used by the first ``reset()`` that is given none, for
-    reproducible runs), the connection keywords (below), and scenario overrides as
+    reproducible runs), ``record`` (a path: record every episode into that Rerun
+    ``.rrd`` file from the start, as ``start_recording(path)`` does; docs/viewing.md),
+    the connection keywords (below), and scenario overrides as
     keyword arguments with dots written as double underscores (``vehicle__ac__speed=18.0``)
     or in ``overrides={"vehicle.ac.speed": 18.0}``. Any other keyword raises TypeError
     naming it and the valid ones."""
@@ -104,11 +106,13 @@ class ParallelEnv(_ParallelEnv):
         *,
         render_size=None,
         seed=None,
+        record=None,
         **kwargs,
     ):
         # Kept so a pickled env (SuperSuit's vector envs copy them) rebuilds its own.
         named = {key: value for key, value in locals().items() if key not in ("self", "__class__", "kwargs")}
-        self._init_args = {**named, **kwargs}
+        # A copy records nothing: copies writing one file would spoil it.
+        self._init_args = {**{k: v for k, v in named.items() if k != "record"}, **kwargs}
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, not {render_mode!r}")
         connection, dotted = split(kwargs, connect=connect)
@@ -126,12 +130,15 @@ class ParallelEnv(_ParallelEnv):
                 expert=expert,
                 policy=policy,
                 diagnostics=diagnostics,
+                record=record is not None,
             )
             specs = self._env.specs()
         except BaseException:
             self._connection.close()
             raise
         self._closed = False
+        self._recording = None
+        self._scenario = scenario
         self._first_seed = seed
         self.render_mode = render_mode
         self.possible_agents = list(specs["possible_agents"])
@@ -147,6 +154,12 @@ class ParallelEnv(_ParallelEnv):
         self.observation_spaces = {a: _convert.space(s) for a, s in specs["observation_spaces"].items()}
         self.action_spaces = {a: _convert.space(s) for a, s in specs["action_spaces"].items()}
         self.state_space = _convert.space(specs["state_space"])
+        if record is not None:
+            try:
+                self._recording = self._new_recording(record)
+            except BaseException:
+                self.close()
+                raise
 
     def observation_space(self, agent):
         return self.observation_spaces[agent]
@@ -165,6 +178,10 @@ class ParallelEnv(_ParallelEnv):
             raise ValueError(f"seed must be in [0, 2**64), not {seed}")
         observations, infos = self._env.reset(None if seed is None else int(seed), reset_options(options))
         self.agents = [a for a in self.possible_agents if a in observations]
+        if self._recording is not None:
+            start, _ = self._env.take_world()
+            if start is not None:
+                self._recording.begin_episode(start, seed=seed, infos=infos)
         return {a: _convert.observation(o) for a, o in observations.items()}, infos
 
     @translated
@@ -178,6 +195,9 @@ class ParallelEnv(_ParallelEnv):
             wire[agent] = _convert.action(action, self.action_spaces[agent], agent)
         observations, rewards, terminations, truncations, infos, agents = self._env.step(wire)
         self.agents = list(agents)
+        if self._recording is not None:
+            _, frames = self._env.take_world()
+            self._recording.add_step(frames, wire, rewards, terminations, truncations, infos)
         observations = {a: _convert.observation(o) for a, o in observations.items()}
         return observations, rewards, terminations, truncations, infos
 
@@ -195,6 +215,52 @@ class ParallelEnv(_ParallelEnv):
             return frame[1]
         _, height, width, data = frame
         return np.frombuffer(data, dtype=np.uint8).reshape(height, width, 3).copy()
+
+    def _new_recording(self, path=None, **where):
+        from .recording import Recording  # rerun-sdk is an optional extra
+
+        meta = {
+            "protocol": _core.PROTOCOL_VERSION,
+            "scenario": self._scenario,
+            "step_dt": float(self.dt),
+            "agents": list(self.possible_agents),
+        }
+        return Recording(path, meta=meta, **where)
+
+    @translated
+    def start_recording(self, path=None, *, spawn=False, serve=False, web_port=9090, grpc_port=9876):
+        """Records every episode from now on: every vehicle at every control period (the
+        road, poses, speeds, lanes, drivers, collisions) and every agent's action, reward
+        and infos at every step, with rerun-sdk (``pip install 'highway-arena[view]'``),
+        into the ``.rrd`` file ``path``, a desktop viewer it starts (``spawn=True``), or a
+        web viewer served on 127.0.0.1 (``serve=True``; its address is the returned
+        recording's ``url``; it stays up until this process exits). Started mid-episode, it begins with the world as it is.
+        Returns the ``Recording``; ``stop_recording()`` ends it."""
+        if self._recording is not None:
+            raise RuntimeError("this env is recording already: stop_recording() first")
+        recording = self._new_recording(path, spawn=spawn, serve=serve, web_port=web_port, grpc_port=grpc_port)
+        try:
+            start = self._env.record(True)
+        except BaseException:
+            recording.close()
+            raise
+        self._recording = recording
+        if start is not None:
+            recording.begin_episode(start)
+        return recording
+
+    def stop_recording(self):
+        """Ends the recording (the file is complete then) and tells the server to stop
+        sending the world; returns the file's path (None for a viewer only)."""
+        recording, self._recording = self._recording, None
+        if recording is None:
+            return None
+        try:
+            if not self._closed:
+                translated(self._env.record)(False)
+        finally:
+            recording.close()
+        return recording.path
 
     @property
     def server(self):
@@ -217,8 +283,11 @@ class ParallelEnv(_ParallelEnv):
         """Closes the env and its Zenoh session; calling it again does nothing."""
         if getattr(self, "_closed", True):
             return
+        recording, self._recording = getattr(self, "_recording", None), None
         self._closed = True
         try:
+            if recording is not None:
+                recording.close()
             translated(self._env.close)()
         finally:
             self._connection.close()

@@ -71,6 +71,15 @@ class GymEnv(gymnasium.Env):
     def render(self):
         return self._parallel.render()
 
+    def start_recording(self, path=None, **where):
+        """``ParallelEnv.start_recording``: every vehicle, and this agent's actions,
+        rewards and infos."""
+        return self._parallel.start_recording(path, **where)
+
+    def stop_recording(self):
+        """``ParallelEnv.stop_recording``."""
+        return self._parallel.stop_recording()
+
     def close(self):
         self._parallel.close()
         super().close()

@@ -152,7 +152,8 @@ impl Registry {
             RequestBody::CreateEnv { scenario, options } => self.create(client, party, scenario, &options),
             RequestBody::Reset { env, seq, seed, options } => self.sequenced(client, env, seq, |env| {
                 self.panic_if_injected("reset");
-                Ok(ReplyBody::Reset(ResetReply { seq, agents: env.reset(seed, &options)? }))
+                let agents = env.reset(seed, &options)?;
+                Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.world_start().map(Box::new) }))
             }),
             RequestBody::Step { env, seq, actions } => {
                 self.sequenced(client, env, seq, |env| self.step_reply(env, seq, &actions).map(ReplyBody::Step))
@@ -167,6 +168,9 @@ impl Registry {
             RequestBody::State { env } => self.with_env(client, env, |slot| slot.env.state().map(ReplyBody::State)),
             RequestBody::Specs { env } => self.with_env(client, env, |slot| Ok(ReplyBody::Specs(slot.env.specs()))),
             RequestBody::Close { env } => self.close(client, env),
+            RequestBody::Record { env, on } => self.with_env(client, env, |slot| {
+                slot.env.set_recording(on).map(|start| ReplyBody::Recording(start.map(Box::new)))
+            }),
         }
     }
 
@@ -180,7 +184,7 @@ impl Registry {
         self.panic_if_injected("step");
         let steps: Vec<AgentStep> = env.step(actions)?;
         self.steps.fetch_add(1, Ordering::Relaxed);
-        Ok(StepReply { seq, steps, agents: env.live_agents() })
+        Ok(StepReply { seq, steps, agents: env.live_agents(), world: env.take_frames() })
     }
 
     fn info(&self, party: &Party) -> ServerInfo {

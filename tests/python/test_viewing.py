@@ -1,0 +1,209 @@
+"""Recordings, read back by Rerun's own loader (``rerun.chunk.RrdReader`` and its
+DataFusion reader): a recording of merge-random holds the road, every vehicle at every
+control period, every agent's rows, and the values the env reported at a known time;
+recording starts mid-episode and stops; episodes follow one another on the timeline;
+``python -m highway_arena.view --summary`` reads the file without a server."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import rerun as rr
+
+import highway_arena
+from highway_arena import recording, view
+
+IDLE = 1
+
+
+def table(path, index=recording.TIMELINE):
+    store = rr.chunk.RrdReader(str(path)).stream().collect()
+    return store.reader(index=index).to_pandas()
+
+
+def present(column):
+    """Rows where ``column`` holds a value (a clear leaves an empty list)."""
+    return column.map(lambda value: value is not None and len(value) > 0)
+
+
+def times_of(frame, column):
+    """Simulated seconds of the rows where ``column`` holds a value."""
+    return frame.loc[present(frame[column]), recording.TIMELINE].dt.total_seconds().to_numpy()
+
+
+def at(frame, time_s, column):
+    """The value of ``column`` in the row at ``time_s`` (simulated seconds)."""
+    times = frame[recording.TIMELINE].dt.total_seconds().to_numpy()
+    rows = frame[np.isclose(times, time_s) & present(frame[column])]
+    assert len(rows) == 1, f"{column} at {time_s}: {len(rows)} rows"
+    return rows[column].iloc[0]
+
+
+def test_a_recording_of_merge_random_holds_the_road_every_vehicle_and_what_the_env_said(tmp_path):
+    path = tmp_path / "merge.rrd"
+    env = highway_arena.parallel_env("merge-random", record=path)
+    observations, infos = env.reset(seed=3)
+    said = {0: (infos["ec_0"]["speed"], infos["ec_0"]["s"], None)}
+    steps = 0
+    end = None
+    while env.agents:
+        _, rewards, terminations, truncations, infos = env.step({"ec_0": IDLE})
+        steps += 1
+        said[steps] = (infos["ec_0"]["speed"], infos["ec_0"]["s"], rewards["ec_0"])
+        if terminations["ec_0"] or truncations["ec_0"]:
+            end = highway_arena.END_REASONS[infos["ec_0"]["end_reason"]]
+    env.close()  # closing writes what is pending and ends the file
+    assert end is not None
+
+    store = rr.chunk.RrdReader(str(path)).stream().collect()
+    static = store.reader(index=None).to_pandas()
+    assert static["/meta:format"].iloc[0][0] == recording.FORMAT
+    assert static["/meta:format_version"].iloc[0][0] == recording.FORMAT_VERSION
+    assert static["/meta:protocol"].iloc[0][0] == highway_arena._core.PROTOCOL_VERSION
+    assert list(static["/meta:agents"].iloc[0]) == ["ec_0"]
+
+    frame = table(path)
+    columns = set(frame.columns)
+    # The road: merge-random's two lanes, the right one ending (its end marked).
+    for lane in ("lane_0", "lane_1"):
+        assert f"/world/road/{lane}:LineStrips2D:strips" in columns, lane
+        assert f"/world/road/{lane}/edges:LineStrips2D:strips" in columns, lane
+    assert "/world/road/lane_1/end:LineStrips2D:strips" in columns
+    assert "/world/road/lane_0/end:LineStrips2D:strips" not in columns
+    # Every vehicle, drawn and with its state, at every control period: the reset's
+    # frame and one per step (merge-random steps one 0.1 s control period).
+    for vehicle in ("ac", "ec_0"):
+        for part in ("LineStrips2D:strips", "x", "y", "heading", "speed", "lane", "end"):
+            assert f"/world/vehicles/{vehicle}:{part}" in columns, (vehicle, part)
+        assert len(times_of(frame, f"/world/vehicles/{vehicle}:x")) == steps + 1, vehicle
+    times = times_of(frame, "/world/vehicles/ec_0:x")
+    assert np.allclose(times, np.arange(steps + 1) * 0.1)
+    # The step timeline counts env steps: the reset's frame is step 0.
+    steps_of = frame.loc[present(frame["/world/vehicles/ec_0:x"]), recording.STEP_TIMELINE].to_numpy()
+    assert list(steps_of) == list(range(steps + 1))
+    # At a known time the file says what the env said.
+    for k in (0, 7, steps):
+        speed, s, reward = said[k]
+        assert at(frame, k * 0.1, "/world/vehicles/ec_0:speed")[0] == speed
+        assert at(frame, k * 0.1, "/world/vehicles/ec_0:s")[0] == s
+        if reward is not None:
+            assert at(frame, k * 0.1, "/agents/ec_0:reward")[0] == reward
+            assert at(frame, k * 0.1, "/plots/reward/ec_0:Scalars:scalars")[0] == reward
+    # Every step's action and the paper's three costs, per agent.
+    assert len(times_of(frame, "/agents/ec_0:action")) == steps
+    assert list(at(frame, 0.5, "/agents/ec_0:action")) == [IDLE]
+    assert at(frame, 0.5, "/agents/ec_0:info.speed")[0] == said[5][0]
+    for part in ("safety", "comfort", "efficiency"):
+        assert len(times_of(frame, f"/plots/cost/ec_0/{part}:Scalars:scalars")) == steps + 1
+    # Where and why the episode ended, when it did.
+    label = at(frame, steps * 0.1, "/events/ends/ec_0:Points2D:labels")
+    assert label[0] == f"ec_0: {end}"
+
+
+def test_recording_starts_mid_episode_stops_and_episodes_follow_one_another(tmp_path):
+    env = highway_arena.parallel_env("merge")
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step({"ec_0": IDLE})
+    first = tmp_path / "mid.rrd"
+    env.start_recording(first)
+    for _ in range(3):
+        env.step({"ec_0": IDLE})
+    env.reset(seed=1)
+    for _ in range(2):
+        env.step({"ec_0": IDLE})
+    assert env.stop_recording() == str(first)
+    env.step({"ec_0": IDLE})  # no longer recorded
+    env.close()
+
+    frame = table(first)
+    times = times_of(frame, "/world/vehicles/ec_0:x")
+    # Episode 1 from t = 0.5 s (the world when recording began) to 0.8 s; episode 2 then
+    # starts one step after it on the recording's timeline, and runs 0.2 s.
+    assert np.allclose(times, [0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1])
+    held = view.summary(first)
+    assert held["episodes"] == 2
+    assert held["vehicles"] == ["ac", "ec_0"]
+    assert held["frames"] == 7
+    assert held["lanes"] == 2
+
+
+def test_highway_gt_records_every_vehicle_every_control_period(tmp_path):
+    path = tmp_path / "highway.rrd"
+    env = highway_arena.parallel_env("highway-gt", record=path)
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step({"ego_0": IDLE})
+    env.close()
+    held = view.summary(path)
+    assert len(held["vehicles"]) == 51
+    assert held["frames"] == 31  # the reset's frame, then 10 per one-second step
+    assert held["duration"] == pytest.approx(3.0)
+
+
+def test_the_view_command_reads_a_recording_without_a_server(tmp_path):
+    path = tmp_path / "one.rrd"
+    env = highway_arena.parallel_env("overtake", record=path)
+    env.reset(seed=0)
+    env.step({"ec_0": IDLE})
+    env.close()
+    done = subprocess.run(
+        [sys.executable, "-m", "highway_arena.view", str(path), "--summary"], capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    assert "overtake" in done.stdout and "2 frames" in done.stdout
+    other = tmp_path / "other.rrd"
+    stream = rr.RecordingStream("not-arena")
+    stream.save(str(other))
+    stream.log("x", rr.Points2D([[0, 0]]), static=True)
+    stream.flush()
+    del stream
+    done = subprocess.run(
+        [sys.executable, "-m", "highway_arena.view", str(other), "--summary"], capture_output=True, text=True
+    )
+    assert done.returncode == 2 and "not a highway-arena recording" in done.stderr
+
+
+def test_recording_needs_somewhere_to_go():
+    with pytest.raises(ValueError, match="somewhere to go"):
+        recording.Recording()
+
+
+def test_continuous_agents_and_expert_infos_record_beside_meta_ones(tmp_path):
+    # Rerun keeps one type per value name in a process: a continuous agent's action and
+    # expert_action (two floats) must record after a meta agent's (ints) did.
+    for action_type, action in (("meta", IDLE), ("continuous", [0.25, 0.0])):
+        path = tmp_path / f"{action_type}.rrd"
+        env = highway_arena.parallel_env("merge", action_type=action_type, expert="nash", record=path)
+        env.reset(seed=0)
+        for _ in range(3):
+            env.step({"ec_0": action})
+        env.close()
+        frame = table(path)
+        assert list(at(frame, 0.2, "/agents/ec_0:action")) == list(np.asarray(action, dtype=float).reshape(-1))
+        assert len(at(frame, 0.2, "/agents/ec_0:info.expert_action")) == (1 if action_type == "meta" else 2)
+
+
+def test_a_collision_is_recorded_where_and_when_it_happened(tmp_path):
+    # overtake, the learner holding "faster" behind the slow car: it runs into it.
+    path = tmp_path / "crash.rrd"
+    env = highway_arena.parallel_env("overtake", record=path)
+    env.reset(seed=0)
+    infos = {}
+    while env.agents:
+        _, _, _, _, infos = env.step({"ec_0": 3})
+    env.close()
+    assert highway_arena.END_REASONS[infos["ec_0"]["end_reason"]] == "collision"
+    frame = table(path)
+    when = times_of(frame, "/events/collisions:Points2D:labels")
+    assert len(when) == 1
+    label = at(frame, when[0], "/events/collisions:Points2D:labels")[0]
+    assert label.startswith("collision ec_0 / ") or " / ec_0 " in label, label
+    # Between the two frames around it, and where the learner was then.
+    frames = times_of(frame, "/world/vehicles/ec_0:x")
+    after = frames[frames >= when[0] - 1e-9][0]
+    assert after - when[0] < 0.1
+    (x, y) = at(frame, when[0], "/events/collisions:Points2D:positions")[0]
+    ego = at(frame, after, "/world/vehicles/ec_0:x")[0], at(frame, after, "/world/vehicles/ec_0:y")[0]
+    assert np.hypot(x - ego[0], y - ego[1]) < 6.0, ((x, y), ego)

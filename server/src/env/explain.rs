@@ -17,7 +17,7 @@ const MAX_EXPLAIN_BYTES: usize = arena_protocol::MAX_MESSAGE_BYTES / 8 * 3;
 /// player's acceleration grid and `samples` points per path: two sides of at most 2 x
 /// `accels` rows (keep and change) by `accels` columns, two costs a cell, plus the
 /// actions, the pruned flags and the paths.
-fn bytes_per_decision(accels: usize, samples: usize) -> usize {
+pub(super) fn bytes_per_decision(accels: usize, samples: usize) -> usize {
     let (rows, cols) = (2 * accels, accels);
     let side = rows * cols * 2 * 9 + rows * 11 + cols * 9 + 64;
     2 * side + 2 * samples * 33 + 128

@@ -962,6 +962,9 @@ struct ExplainedEpisode {
     lane_changes: usize,
     skipped_cells: usize,
     pruned_rows: usize,
+    /// The largest encoded explanation of one decision, and of one step's (bytes).
+    largest: usize,
+    largest_step: usize,
 }
 
 /// Steps `name` (seed 7) with `actions` for every step, explain on or off; checks every
@@ -978,12 +981,14 @@ fn explained_episode(name: &str, explain: bool, steps: usize, action: &[(String,
         let stepped = env.step(action).unwrap();
         seen.steps.push(arena_protocol::encode(&stepped));
         let explained = env.take_explanations();
+        seen.largest_step = seen.largest_step.max(arena_protocol::encode(&explained).len());
         assert_eq!(
             explained.is_empty(),
             !explain || env.world().unwrap().vehicles().iter().all(|v| !matches!(v.driver, arena_sim::Driver::Gt(_)))
         );
         for e in explained {
             check_explained(&env, &e);
+            seen.largest = seen.largest.max(arena_protocol::encode(&e).len());
             seen.decisions += 1;
             seen.lane_changes += usize::from(e.sigma != 0);
             for t in &e.tables {
@@ -1063,6 +1068,12 @@ fn explained_highway_gt_is_the_same_episode_and_every_decision_checks() {
     assert!(on.steps == off.steps, "highway-gt: an episode with explain on differs from the same without");
     assert!(on.decisions >= 8 * 30, "{} decisions explained", on.decisions);
     assert!(on.pruned_rows > 0 || on.skipped_cells > 0, "no skipped cell in {} decisions", on.decisions);
+    // The bound `explain::check_fits` refuses by is one: no decision encodes to more.
+    let bound = explain::bytes_per_decision(29, 6);
+    assert!(on.largest <= bound, "a decision of {} bytes, above the bound {bound}", on.largest);
+    // highway-gt, 10 periods of 8 cars a step: 56 kB a decision, 2.7 MB a step at most
+    // (docs/protocol.md); under the 6 MiB a reset is refused above.
+    assert!(on.largest_step < 6 << 20, "a step of {} bytes", on.largest_step);
 }
 
 #[test]

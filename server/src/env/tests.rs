@@ -1019,9 +1019,12 @@ fn check_explained(env: &Env, e: &arena_protocol::DecisionExplained) {
         assert_eq!(
             (row, col, exact),
             (t.row as usize, t.col as usize, t.exact),
-            "t={} car {}: {t:?}",
+            "t={} car {}: side {}'s equilibrium ({} x {} table)",
             e.time,
-            e.vehicle
+            e.vehicle,
+            t.side,
+            t.ec_actions.len(),
+            t.ac_actions.len()
         );
         let cost = t.ec_costs[row * t.ac_actions.len() + col];
         if !answers && cheapest.is_none_or(|(c, _)| cost < c) {

@@ -18,6 +18,8 @@
 //! - [`Space`]: Box, Discrete and Dict specs, with checks for observations and actions.
 //! - [`WorldStart`] / [`WorldFrame`]: the world as a recording sees it (road geometry in
 //!   world coordinates, every vehicle per control period), carried while recording is on.
+//! - [`DecisionExplained`]: a game-theoretic car's decision with the game it played, carried
+//!   with `CreateOptions::explain`.
 //! - [`ErrorReply`]: a stable [`ErrorCode`], a message for people, and whether the env
 //!   survives.
 //! - `session` (feature `session`): connection flags turned into a `zenoh::Config`.
@@ -40,6 +42,7 @@
 pub mod bounds;
 mod codec;
 mod error;
+mod explain;
 pub mod info;
 pub mod keys;
 mod messages;
@@ -51,6 +54,7 @@ mod world;
 
 pub use codec::{MAX_MESSAGE_BYTES, decode, encode, peek_version};
 pub use error::{DecodeError, ErrorCode, ErrorReply, KeyError};
+pub use explain::{DecisionExplained, GameTable, PathPoint};
 pub use info::{EndReason, Info, InfoKind, InfoValue};
 pub use messages::*;
 pub use names::UnknownName;
@@ -66,5 +70,6 @@ pub use world::{
 /// 5: one row per agent in step and reset replies, `ResetOptions`, infos of one fixed
 /// schema with no strings, `info::SCHEMA`; 6: `collision_with`, `at_fault` and the jerk
 /// figures in infos; 7: recordings, `CreateOptions::record`, `RequestBody::Record`, the
-/// world in reset and step replies, `world`).
-pub const PROTOCOL_VERSION: u16 = 7;
+/// world in reset and step replies, `world`; 8: `CreateOptions::explain`,
+/// `StepReply::explain`).
+pub const PROTOCOL_VERSION: u16 = 8;

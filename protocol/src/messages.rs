@@ -7,6 +7,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use crate::error::ErrorReply;
+use crate::explain::DecisionExplained;
 use crate::info::Info;
 use crate::names::named;
 use crate::spaces::Space;
@@ -202,6 +203,9 @@ pub struct CreateOptions {
     /// replies a `WorldFrame` per control period (`RequestBody::Record` turns it on or
     /// off later).
     pub record: bool,
+    /// Explain every game-theoretic decision (version 8): step replies carry
+    /// `StepReply::explain`. Costs a second computation of each decision.
+    pub explain: bool,
 }
 
 /// A driver the server has, in a learner's place.
@@ -582,6 +586,9 @@ pub struct StepReply {
     /// While recording: the world at the end of each control period of the step (and at
     /// its end, if that falls between two), in time order; empty otherwise (version 7).
     pub world: Vec<WorldFrame>,
+    /// With `CreateOptions::explain`: every game-theoretic decision of the step, in time
+    /// order, cars by index; empty otherwise (version 8).
+    pub explain: Vec<DecisionExplained>,
 }
 
 /// A rendered frame.
@@ -720,7 +727,43 @@ mod tests {
             ],
             agents: vec![],
             world: vec![],
+            explain: vec![],
         }
+    }
+
+    fn explained_step_reply() -> StepReply {
+        use crate::explain::{DecisionExplained, GameTable, PathPoint};
+        let point = PathPoint { t: 0.5, x: 1.0, y: -2.0, speed: 20.0 };
+        let table = GameTable {
+            side: -1,
+            adjacent: Some(1),
+            ec_actions: vec![(-1.0, 0), (0.5, -1)],
+            ac_actions: vec![0.0, 1.0],
+            ec_costs: vec![1.0, 1.0, 2.0, 3.0],
+            ac_costs: vec![0.5, 0.25, 4.0, 5.0],
+            pruned: vec![false, true],
+            row: 0,
+            col: 1,
+            exact: true,
+            cost: 1.0,
+        };
+        let decision = DecisionExplained {
+            time: 1.5,
+            vehicle: 0,
+            game: Game::Stackelberg,
+            role: crate::world::GtRole::Leader,
+            ec: 0,
+            tables: vec![table],
+            chosen: Some(0),
+            games_accel: -1.0,
+            accel: -1.0,
+            sigma: 0,
+            safety: false,
+            fallback: true,
+            planned: vec![point, point],
+            predicted: vec![],
+        };
+        StepReply { explain: vec![decision], ..step_reply() }
     }
 
     fn recorded_step_reply() -> StepReply {
@@ -746,6 +789,7 @@ mod tests {
                     policy: Some(BuiltinPolicy::Gt { style: Some(Style::Conservative), game: Game::Nash }),
                     diagnostics: true,
                     record: true,
+                    explain: true,
                 },
             },
             RequestBody::CreateEnv {
@@ -816,6 +860,7 @@ mod tests {
             ReplyBody::Reset(ResetReply { seq: 2, agents: vec![], world: Some(world_start()) }),
             ReplyBody::Step(step_reply()),
             ReplyBody::Step(recorded_step_reply()),
+            ReplyBody::Step(explained_step_reply()),
             ReplyBody::StepBatch(vec![BatchItem::Ok(step_reply()), BatchItem::Err(error.clone())]),
             ReplyBody::Render(Frame::Rgb { height: 1, width: 2, pixels: vec![1, 2, 3, 4, 5, 6] }),
             ReplyBody::Render(Frame::Ansi("..@..".into())),
@@ -872,6 +917,17 @@ mod tests {
                 assert_eq!(peek_version(&bytes), Some(version), "{reply:?}");
             }
         }
+    }
+
+    #[test]
+    fn skipped_cells_travel_as_nan() {
+        let mut reply = explained_step_reply();
+        reply.explain[0].tables[0].ec_costs[3] = f64::NAN;
+        let ReplyBody::Step(back) = decode::<Reply>(&encode(&Reply::new(ReplyBody::Step(reply)))).unwrap().body else {
+            panic!("not a step reply")
+        };
+        let costs = &back.explain[0].tables[0].ec_costs;
+        assert!(costs[3].is_nan() && costs[..3] == [1.0, 1.0, 2.0], "{costs:?}");
     }
 
     #[test]

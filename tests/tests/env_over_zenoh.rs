@@ -67,6 +67,28 @@ async fn a_recording_env_sends_the_world_and_stops_when_told() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_explaining_env_sends_the_avs_decisions_and_the_same_episode() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let explaining = CreateOptions { explain: true, ..Default::default() };
+    let mut on = harness.env_with(&client, "merge-ac", explaining).await;
+    let mut off = harness.env_with(&client, "merge-ac", CreateOptions::default()).await;
+    assert_eq!(on.reset(Some(2), vec![]).await.unwrap(), off.reset(Some(2), vec![]).await.unwrap());
+    for _ in 0..20 {
+        let (a, b) = (on.step(meta("ac_0", 1)).await.unwrap(), off.step(meta("ac_0", 1)).await.unwrap());
+        assert_eq!(a.steps, b.steps, "explained or not, the same step");
+        assert!(b.explain.is_empty(), "explanations only when asked");
+        // merge-ac: one game-theoretic leader, "ec" (vehicle 1), one decision a step.
+        let [decision] = &a.explain[..] else { panic!("{} decisions in a step", a.explain.len()) };
+        assert_eq!((decision.vehicle, decision.ec), (1, 1));
+        let table = &decision.tables[decision.chosen.expect("a side played") as usize];
+        let (accel, sigma) = table.ec_actions[table.row as usize];
+        assert_eq!((accel, sigma), (decision.games_accel, decision.sigma), "the chosen cell is the action taken");
+        assert_eq!(table.adjacent, Some(0).filter(|_| table.side == -1), "ac_0, beside on the left");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn missing_action_is_idle() {
     let harness = common::start().await;
     let client = harness.client().await;

@@ -14,8 +14,8 @@ use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSo
 use arena_protocol::keys::DEFAULT_PREFIX;
 use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
-    Action, ActionType, BuiltinPolicy, EndReason, Frame, Game, Info, InfoValue, MetaAction, Observation,
-    ObservationKind, RenderMode, Space, StepReply, Tensor, TensorData, WorldFrame, WorldStart,
+    Action, ActionType, BuiltinPolicy, DecisionExplained, EndReason, Frame, Game, Info, InfoValue, MetaAction,
+    Observation, ObservationKind, RenderMode, Space, StepReply, Tensor, TensorData, WorldFrame, WorldStart,
 };
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -112,7 +112,7 @@ impl Client {
 
     /// Creates an env: `scenario` names one on the server, or `text` is a scenario
     /// file's TOML (then `scenario` names it in error messages).
-    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None, policy = None, diagnostics = false, record = false))]
+    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None, policy = None, diagnostics = false, record = false, explain = false))]
     #[allow(clippy::too_many_arguments)]
     fn create_env(
         &self,
@@ -129,6 +129,7 @@ impl Client {
         policy: Option<String>,
         diagnostics: bool,
         record: bool,
+        explain: bool,
     ) -> PyResult<Env> {
         let overrides = overrides
             .into_iter()
@@ -152,6 +153,7 @@ impl Client {
             policy,
             diagnostics,
             record,
+            explain,
         };
         let env = py.detach(|| self.inner.create_env(&server, source, options)).map_err(to_py_err)?;
         Ok(Env {
@@ -159,6 +161,7 @@ impl Client {
             server: env.server().to_string(),
             inner: Mutex::new(Some(env)),
             world: Mutex::default(),
+            explained: Mutex::default(),
         })
     }
 
@@ -203,6 +206,7 @@ impl Client {
             .map(|(result, env)| match result {
                 Ok(mut reply) => {
                     lock(&env.world).frames.append(&mut reply.world);
+                    lock(&env.explained).append(&mut reply.explain);
                     step_tuple(py, reply).map(|t| t.into_any().unbind())
                 }
                 Err(error) => Ok(to_py_err(error).into_value(py).into_any()),
@@ -532,6 +536,9 @@ struct Env {
     /// What recording replies brought since Python last took it (`take_world`). Held
     /// only for a moment, never across a wait.
     world: Mutex<PendingWorld>,
+    /// The decisions explained since Python last took them (`take_explanations`); held
+    /// as `world` is.
+    explained: Mutex<Vec<DecisionExplained>>,
 }
 
 /// One column of a vehicle frame, by name.
@@ -700,6 +707,7 @@ impl Env {
         }
         let mut reply = self.with(py, move |env| env.reset(seed, parsed))?;
         *lock(&self.world) = PendingWorld { start: reply.world.take(), frames: Vec::new() };
+        lock(&self.explained).clear();
         let (observations, infos) = (PyDict::new(py), PyDict::new(py));
         for start in &reply.agents {
             observations.set_item(&start.agent, observation_value(py, &start.observation)?)?;
@@ -713,6 +721,7 @@ impl Env {
         let actions = parse_actions(&actions)?;
         let mut reply = self.with(py, move |env| env.step(actions))?;
         lock(&self.world).frames.append(&mut reply.world);
+        lock(&self.explained).append(&mut reply.explain);
         step_tuple(py, reply)
     }
 
@@ -732,6 +741,14 @@ impl Env {
         let start = pending.start.map(|start| start_dict(py, &start)).transpose()?;
         let frames = (!pending.frames.is_empty()).then(|| frames_dict(py, &pending.frames)).transpose()?;
         Ok((start, frames))
+    }
+
+    /// The game-theoretic decisions explained since the last call (created with
+    /// `explain=True`), in time order: a list of dicts (`explained_dict`).
+    fn take_explanations<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let explained = std::mem::take(&mut *lock(&self.explained));
+        let dicts = explained.iter().map(|e| explained_dict(py, e)).collect::<PyResult<Vec<_>>>()?;
+        PyList::new(py, dicts)
     }
 
     /// ("rgb", height, width, bytes) or ("ansi", text).
@@ -766,6 +783,45 @@ impl Env {
         });
         Ok(())
     }
+}
+
+/// A `DecisionExplained` as a dict of the same field names (docs/protocol.md, "The AV
+/// explained"): `game` and `role` by name, paths as lists of (t, x, y, speed), each table
+/// a dict with its costs as flat row-major lists (NaN: skipped).
+fn explained_dict<'py>(py: Python<'py>, e: &DecisionExplained) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    dict.set_item("time", e.time)?;
+    dict.set_item("vehicle", e.vehicle)?;
+    dict.set_item("game", e.game.name())?;
+    dict.set_item("role", e.role.name())?;
+    dict.set_item("ec", e.ec)?;
+    let tables = PyList::empty(py);
+    for t in &e.tables {
+        let table = PyDict::new(py);
+        table.set_item("side", t.side)?;
+        table.set_item("adjacent", t.adjacent)?;
+        table.set_item("ec_actions", t.ec_actions.clone())?;
+        table.set_item("ac_actions", t.ac_actions.clone())?;
+        table.set_item("ec_costs", t.ec_costs.clone())?;
+        table.set_item("ac_costs", t.ac_costs.clone())?;
+        table.set_item("pruned", t.pruned.clone())?;
+        table.set_item("row", t.row)?;
+        table.set_item("col", t.col)?;
+        table.set_item("exact", t.exact)?;
+        table.set_item("cost", t.cost)?;
+        tables.append(table)?;
+    }
+    dict.set_item("tables", tables)?;
+    dict.set_item("chosen", e.chosen)?;
+    dict.set_item("games_accel", e.games_accel)?;
+    dict.set_item("accel", e.accel)?;
+    dict.set_item("sigma", e.sigma)?;
+    dict.set_item("safety", e.safety)?;
+    dict.set_item("fallback", e.fallback)?;
+    let points = |path: &[arena_protocol::PathPoint]| path.iter().map(|p| (p.t, p.x, p.y, p.speed)).collect::<Vec<_>>();
+    dict.set_item("planned", points(&e.planned))?;
+    dict.set_item("predicted", points(&e.predicted))?;
+    Ok(dict)
 }
 
 #[pymodule]

@@ -25,10 +25,10 @@ pub use dynamics::{
     lane_change_response, lane_change_trajectory, lateral_modes, longitudinal_jerk, rk4_growth,
 };
 pub use gt::{
-    AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, FieldParams, Game,
-    GameParams, GtDriver, GtParams, GtStep, InteractionParams, JerkParams, MergeParams, Mpc, MpcError, MpcParams,
-    MpcSolution, PredictionParams, SafetyOverride, SafetyParams, StyleProfile, expert_decision, plan, plan_motion,
-    stage_cost,
+    AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, Explanation,
+    FieldParams, Game, GameExplained, GameParams, GtDriver, GtParams, GtStep, InteractionParams, JerkParams,
+    Kinematics, MergeParams, Mpc, MpcError, MpcParams, MpcSolution, PredictionParams, SafetyOverride, SafetyParams,
+    SideExplained, StyleProfile, expert_decision, explain, plan, plan_motion, stage_cost,
 };
 pub use preset::{BUILTIN_PRESETS, Preset, PresetError};
 pub use road::{LaneChange, LaneId, Pose, Road, Section};

@@ -201,6 +201,11 @@ pub struct World {
     /// Scratch of `integrate`: the vehicles that move this step, and their ids.
     fleet: dynamics::Fleet,
     moving: Vec<u32>,
+    /// Whether each game-theoretic decision is explained (`set_explain`); never read by a
+    /// decision.
+    explain: bool,
+    /// The decisions explained since `take_explanations` last emptied it.
+    explanations: Vec<gt::Explanation>,
 }
 
 impl World {
@@ -223,6 +228,8 @@ impl World {
             steppers: Vec::new(),
             fleet: dynamics::Fleet::default(),
             moving: Vec::new(),
+            explain: false,
+            explanations: Vec::new(),
         }
     }
 
@@ -485,10 +492,39 @@ impl World {
                 *decision = self.decide_one(index);
             }
         }
+        if self.explain {
+            self.explain_decisions(&decisions);
+        }
         for (index, decision) in decisions.drain(..).enumerate() {
             self.apply(VehicleId(index as u32), decision);
         }
         self.decisions = decisions;
+    }
+
+    /// Explains the game-theoretic cars' `decisions` of this period from the scene they
+    /// read and each driver's memory before it (`gt::explain`): the decisions do not
+    /// change.
+    fn explain_decisions(&mut self, decisions: &[Decision]) {
+        for (index, decision) in decisions.iter().enumerate() {
+            if let (Decision::Gt(step), Driver::Gt(gt)) = (decision, &self.vehicles[index].driver) {
+                let explained = gt::explain(&self.scene, VehicleId(index as u32), gt, step);
+                self.explanations.push(explained);
+            }
+        }
+    }
+
+    /// Explain every game-theoretic decision from now on (`take_explanations`), or stop.
+    /// Off by default; the decisions are the same bits either way.
+    pub fn set_explain(&mut self, on: bool) {
+        self.explain = on;
+        if !on {
+            self.explanations.clear();
+        }
+    }
+
+    /// The decisions explained since the last call, in time order, cars by id.
+    pub fn take_explanations(&mut self) -> Vec<gt::Explanation> {
+        std::mem::take(&mut self.explanations)
     }
 
     /// The decisions of the game-theoretic cars that `pick` selects, made in

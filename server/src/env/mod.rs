@@ -14,6 +14,7 @@
 
 mod action;
 mod episode;
+mod explain;
 mod info;
 mod observation;
 mod overrides;
@@ -24,8 +25,8 @@ mod risk;
 mod simulate;
 
 use arena_protocol::{
-    Action, ActionType, AgentStart, AgentStep, BuiltinPolicy, CreateOptions, EndReason, EnvSpecs, ErrorCode,
-    ErrorReply, Frame, Observation, ObservationKind, RenderMode, ResetOptions, WorldFrame, WorldStart,
+    Action, ActionType, AgentStart, AgentStep, BuiltinPolicy, CreateOptions, DecisionExplained, EndReason, EnvSpecs,
+    ErrorCode, ErrorReply, Frame, Observation, ObservationKind, RenderMode, ResetOptions, WorldFrame, WorldStart,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -82,6 +83,8 @@ pub struct Env {
     cycles: u32,
     /// Buffers of `step`, kept so a step allocates only what its reply carries.
     scratch: StepScratch,
+    /// Whether step replies explain the game-theoretic decisions (`explain`).
+    explain: bool,
 }
 
 /// What `step` works in, per agent slot or per live agent.
@@ -187,6 +190,7 @@ impl Env {
             agents,
             cycles: 0,
             scratch: StepScratch::default(),
+            explain: options.explain,
         })
     }
 
@@ -256,6 +260,10 @@ impl Env {
         if self.recording {
             recording::check_fits(world.vehicles().len(), frames_per_step(&episode, &world))?;
             self.recorder.restart(&world);
+        }
+        if self.explain {
+            explain::check_fits(&world, frames_per_step(&episode, &world) - 1)?;
+            world.set_explain(true);
         }
         self.seeds = seeds;
         self.episode = episode;
@@ -369,6 +377,15 @@ impl Env {
     /// The frames the last step took while recording (a step reply's); empty otherwise.
     pub fn take_frames(&mut self) -> Vec<WorldFrame> {
         std::mem::take(&mut self.recorder.frames)
+    }
+
+    /// The game-theoretic decisions the last step took, explained (a step reply's); empty
+    /// unless created with `explain`.
+    pub fn take_explanations(&mut self) -> Vec<DecisionExplained> {
+        match self.world.as_mut() {
+            Some(world) if self.explain => explain::take(world),
+            _ => Vec::new(),
+        }
     }
 
     /// Turns recording on or off. Turned on after a reset, it returns the world now

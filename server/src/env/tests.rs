@@ -876,3 +876,219 @@ fn a_recording_that_would_not_fit_a_reply_is_refused() {
     assert_eq!(env.world().unwrap().time(), time);
     assert_eq!(env.step(&[]).unwrap().len(), 1);
 }
+
+// --- The AV explained (issue 27, point 3) ---
+
+/// A plain search of the tables an explanation shows, written apart from the games: the
+/// equilibrium of `t` (row, column, exact) for `game` with follower tolerance `tolerance`;
+/// `answers`: the car is the follower, whose Stackelberg table is one row to reply to.
+/// Skipped cells (NaN) and pruned rows are never candidates; a cell the search must read
+/// that is NaN fails the test.
+fn searched(t: &arena_protocol::GameTable, game: Game, tolerance: f64, answers: bool) -> (usize, usize, bool) {
+    let (rows, cols) = (t.ec_actions.len(), t.ac_actions.len());
+    assert_eq!((t.ec_costs.len(), t.ac_costs.len(), t.pruned.len()), (rows * cols, rows * cols, rows));
+    let ec = |r: usize, c: usize| {
+        let cost = t.ec_costs[r * cols + c];
+        assert!(!cost.is_nan(), "EC's cost at ({r}, {c}) is read by the equilibrium but not shown");
+        cost
+    };
+    let ac = |r: usize, c: usize| t.ac_costs[r * cols + c];
+    let reply = |r: usize| {
+        let mut best = None;
+        for c in 0..cols {
+            if !ac(r, c).is_nan() && best.is_none_or(|b| ac(r, c) < ac(r, b)) {
+                best = Some(c);
+            }
+        }
+        best.expect("a row in play shows at least one AC cost")
+    };
+    let in_play: Vec<usize> = (0..rows).filter(|&r| !t.pruned[r]).collect();
+    if answers && game == Game::Stackelberg {
+        assert_eq!(rows, 1, "a Stackelberg follower replies to one announced action");
+        return (0, reply(0), true);
+    }
+    match game {
+        Game::Stackelberg => {
+            let mut best: Option<(f64, usize, usize)> = None;
+            for &r in &in_play {
+                let floor = ac(r, reply(r));
+                let bound = floor + tolerance * floor.abs();
+                let mut worst: Option<(f64, usize)> = None;
+                for c in (0..cols).filter(|&c| ac(r, c) <= bound) {
+                    if worst.is_none_or(|(w, _)| ec(r, c) > w) {
+                        worst = Some((ec(r, c), c));
+                    }
+                }
+                let (w, c) = worst.expect("the best reply is in the follower set");
+                if best.is_none_or(|(b, ..)| w < b) {
+                    best = Some((w, r, c));
+                }
+            }
+            let (_, r, c) = best.expect("a row in play");
+            (r, c, true)
+        }
+        Game::Nash => {
+            let mut best: Option<(f64, usize, usize)> = None;
+            for &r in &in_play {
+                let c = reply(r);
+                let column_min = in_play.iter().map(|&q| ec(q, c)).fold(f64::INFINITY, f64::min);
+                if ec(r, c) <= column_min && best.is_none_or(|(b, ..)| ec(r, c) < b) {
+                    best = Some((ec(r, c), r, c));
+                }
+            }
+            if let Some((_, r, c)) = best {
+                return (r, c, true);
+            }
+            // No pure equilibrium: the current lane decision's best row against replies.
+            let committed = t.ec_actions.iter().all(|&(_, sigma)| sigma != 0);
+            let mut fallback: Option<(f64, usize, usize)> = None;
+            for &r in in_play.iter().filter(|&&r| committed || t.ec_actions[r].1 == 0) {
+                let c = reply(r);
+                if fallback.is_none_or(|(b, ..)| ec(r, c) < b) {
+                    fallback = Some((ec(r, c), r, c));
+                }
+            }
+            let (_, r, c) = fallback.expect("a row keeps the current decision");
+            (r, c, false)
+        }
+    }
+}
+
+/// What `explained_episode` saw.
+#[derive(Default)]
+struct ExplainedEpisode {
+    steps: Vec<Vec<u8>>,
+    decisions: usize,
+    lane_changes: usize,
+    skipped_cells: usize,
+    pruned_rows: usize,
+    /// The largest encoded explanation of one decision, and of one step's (bytes).
+    largest: usize,
+    largest_step: usize,
+}
+
+/// Steps `name` (seed 7) with `actions` for every step, explain on or off; checks every
+/// explanation's tables against `searched` and the action the car took.
+fn explained_episode(name: &str, explain: bool, steps: usize, action: &[(String, Action)]) -> ExplainedEpisode {
+    let mut env = env(name, CreateOptions { explain, ..CreateOptions::default() });
+    let mut seen = ExplainedEpisode::default();
+    let reset = env.reset(Some(7), NO_OPTIONS).unwrap();
+    seen.steps.push(arena_protocol::encode(&reset));
+    for _ in 0..steps {
+        if env.live_agents().is_empty() {
+            break;
+        }
+        let stepped = env.step(action).unwrap();
+        seen.steps.push(arena_protocol::encode(&stepped));
+        let explained = env.take_explanations();
+        seen.largest_step = seen.largest_step.max(arena_protocol::encode(&explained).len());
+        assert_eq!(
+            explained.is_empty(),
+            !explain || env.world().unwrap().vehicles().iter().all(|v| !matches!(v.driver, arena_sim::Driver::Gt(_)))
+        );
+        for e in explained {
+            check_explained(&env, &e);
+            seen.largest = seen.largest.max(arena_protocol::encode(&e).len());
+            seen.decisions += 1;
+            seen.lane_changes += usize::from(e.sigma != 0);
+            for t in &e.tables {
+                seen.skipped_cells += t.ec_costs.iter().chain(&t.ac_costs).filter(|c| c.is_nan()).count();
+                seen.pruned_rows += t.pruned.iter().filter(|&&p| p).count();
+            }
+        }
+    }
+    seen
+}
+
+/// The issue's test for one decision: each table's equilibrium is what a plain search of
+/// the shown cells finds, the chosen table is the cheapest for EC, and the chosen cell's
+/// action is the one the car took.
+fn check_explained(env: &Env, e: &arena_protocol::DecisionExplained) {
+    let world = env.world().unwrap();
+    let params = world.gt_params(VehicleId(e.vehicle));
+    let tolerance = params.decision.game.follower_tolerance;
+    let answers = e.ec != e.vehicle;
+    let game = match (e.role, answers) {
+        // A follower alone plays Nash in its own lane.
+        (arena_protocol::GtRole::Follower, false) => Game::Nash,
+        _ => super::game(e.game),
+    };
+    let mut cheapest: Option<(f64, usize)> = None;
+    for (at, t) in e.tables.iter().enumerate() {
+        let (row, col, exact) = searched(t, game, tolerance, answers);
+        assert_eq!(
+            (row, col, exact),
+            (t.row as usize, t.col as usize, t.exact),
+            "t={} car {}: side {}'s equilibrium ({} x {} table)",
+            e.time,
+            e.vehicle,
+            t.side,
+            t.ec_actions.len(),
+            t.ac_actions.len()
+        );
+        let cost = t.ec_costs[row * t.ac_actions.len() + col];
+        if !answers && cheapest.is_none_or(|(c, _)| cost < c) {
+            cheapest = Some((cost, at));
+        }
+    }
+    if !answers {
+        assert_eq!(cheapest.map(|(_, at)| at as u32), e.chosen, "t={} car {}: the side chosen", e.time, e.vehicle);
+    }
+    let Some(t) = e.chosen.map(|at| &e.tables[at as usize]) else { return };
+    let (row, col) = (t.row as usize, t.col as usize);
+    let (accel, sigma) = if answers { (t.ac_actions[col], 0) } else { t.ec_actions[row] };
+    if !e.fallback {
+        assert_eq!((accel, sigma), (e.games_accel, e.sigma), "t={} car {}: the action taken", e.time, e.vehicle);
+    }
+    if !e.safety && !e.fallback {
+        assert_eq!(e.accel, e.games_accel, "t={} car {}: commanded without an override", e.time, e.vehicle);
+    }
+    assert_eq!(e.planned.len(), params.decision.prediction.samples, "one planned point per sample");
+}
+
+#[test]
+fn explained_tables_reproduce_the_decision_the_av_took_on_merge() {
+    // merge-ac: a Stackelberg leader merges from the ending lane beside the learner.
+    let keep = meta_of("ac_0", MetaAction::Idle);
+    let on = explained_episode("merge-ac", true, 120, &keep);
+    let off = explained_episode("merge-ac", false, 120, &keep);
+    assert!(on.steps == off.steps, "an episode with explain on differs from the same without");
+    assert!(on.decisions >= 100, "{} decisions explained", on.decisions);
+    assert!(on.lane_changes > 0, "no explained lane change: the merge was not explained");
+    assert!(on.skipped_cells > 0, "no skipped cell shown: the fast search's tables were not the ones shown");
+    // merge: the learner merges, a Stackelberg follower answers it.
+    let merge_left = meta_of("ec_0", MetaAction::LaneLeft);
+    let on = explained_episode("merge", true, 60, &merge_left);
+    let off = explained_episode("merge", false, 60, &merge_left);
+    assert!(on.steps == off.steps, "merge: an episode with explain on differs from the same without");
+    assert!(on.decisions >= 30, "{} follower decisions explained", on.decisions);
+}
+
+#[test]
+fn explained_highway_gt_is_the_same_episode_and_every_decision_checks() {
+    let on = explained_episode("highway-gt", true, 30, &[]);
+    let off = explained_episode("highway-gt", false, 30, &[]);
+    assert!(on.steps == off.steps, "highway-gt: an episode with explain on differs from the same without");
+    assert!(on.decisions >= 8 * 30, "{} decisions explained", on.decisions);
+    assert!(on.pruned_rows > 0 || on.skipped_cells > 0, "no skipped cell in {} decisions", on.decisions);
+    // The bound `explain::check_fits` refuses by is one: no decision encodes to more.
+    let bound = explain::bytes_per_decision(29, 6);
+    assert!(on.largest <= bound, "a decision of {} bytes, above the bound {bound}", on.largest);
+    // highway-gt, 10 periods of 8 cars a step: 56 kB a decision, 2.7 MB a step at most
+    // (docs/protocol.md); under the 6 MiB a reset is refused above.
+    assert!(on.largest_step < 6 << 20, "a step of {} bytes", on.largest_step);
+}
+
+#[test]
+fn explanations_that_could_not_fit_a_reply_are_refused_at_reset() {
+    let options = CreateOptions { explain: true, ..CreateOptions::default() };
+    let mut env = env("highway-gt", options);
+    let fine = ResetOptions::default();
+    assert!(env.reset(Some(1), &fine).is_ok());
+    // Twenty control periods a step: eight cars' twenty decisions of up to 63 kB each.
+    let long_steps = overriding(&[("sim.step_dt", OptionValue::Float(2.0))]);
+    let refused = env.reset(Some(1), &long_steps);
+    let error = refused.expect_err("twenty periods of eight cars' tables fit no reply");
+    assert_eq!(error.code, ErrorCode::InvalidScenario);
+    assert!(error.message.contains("explain:"), "{}", error.message);
+}

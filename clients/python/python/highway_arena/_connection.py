@@ -226,6 +226,7 @@ class Connection:
         expert=None,
         policy=None,
         diagnostics=False,
+        explain=False,
     ):
         """An env on ``server`` (default: the one picked at connection). The keyword-only
         parameters are the env's options on the server (``ENV_OPTIONS``); ``record``
@@ -244,6 +245,7 @@ class Connection:
             policy=policy,
             diagnostics=bool(diagnostics),
             record=bool(record),
+            explain=bool(explain),
         )
 
     @translated

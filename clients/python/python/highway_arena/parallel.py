@@ -80,7 +80,9 @@ class ParallelEnv(_ParallelEnv):
     'gt:<style>:<game>', 'expert' or 'idm'; then ``step({})`` takes no actions),
     ``diagnostics`` (True: infos carry every game-theoretic car's solver counts,
     ``gt.<car>.plans``, ``.qp_iterations``, ``.qp_iterations_total``, ``.fallbacks``,
-    ``.inexact``), ``seed`` (used by the first ``reset()`` that is given none, for
+    ``.inexact``), ``explain`` (True: every game-theoretic decision comes with the game
+    it played, its cost tables and predicted paths, in ``explanations`` after each step
+    and in the recording; docs/viewing.md, "The AV explained"), ``seed`` (used by the first ``reset()`` that is given none, for
     reproducible runs), ``record`` (a path: record every episode into that Rerun
     ``.rrd`` file from the start, as ``start_recording(path)`` does; docs/viewing.md),
     the connection keywords (below), and scenario overrides as
@@ -107,6 +109,7 @@ class ParallelEnv(_ParallelEnv):
         render_size=None,
         seed=None,
         record=None,
+        explain=False,
         **kwargs,
     ):
         # Kept so a pickled env (SuperSuit's vector envs copy them) rebuilds its own.
@@ -131,6 +134,7 @@ class ParallelEnv(_ParallelEnv):
                 policy=policy,
                 diagnostics=diagnostics,
                 record=record is not None,
+                explain=explain,
             )
             specs = self._env.specs()
         except BaseException:
@@ -138,6 +142,9 @@ class ParallelEnv(_ParallelEnv):
             raise
         self._closed = False
         self._recording = None
+        # The decisions the last step explained (``explain=True``): dicts as the extension's
+        # ``take_explanations`` gives them.
+        self.explanations = []
         self._scenario = scenario
         self._first_seed = seed
         self.render_mode = render_mode
@@ -178,6 +185,7 @@ class ParallelEnv(_ParallelEnv):
             raise ValueError(f"seed must be in [0, 2**64), not {seed}")
         observations, infos = self._env.reset(None if seed is None else int(seed), reset_options(options))
         self.agents = [a for a in self.possible_agents if a in observations]
+        self.explanations = []
         if self._recording is not None:
             start, _ = self._env.take_world()
             if start is not None:
@@ -195,9 +203,11 @@ class ParallelEnv(_ParallelEnv):
             wire[agent] = _convert.action(action, self.action_spaces[agent], agent)
         observations, rewards, terminations, truncations, infos, agents = self._env.step(wire)
         self.agents = list(agents)
+        self.explanations = self._env.take_explanations()
         if self._recording is not None:
             _, frames = self._env.take_world()
             self._recording.add_step(frames, wire, rewards, terminations, truncations, infos)
+            self._recording.add_explanations(self.explanations)
         observations = {a: _convert.observation(o) for a, o in observations.items()}
         return observations, rewards, terminations, truncations, infos
 

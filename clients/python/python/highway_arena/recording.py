@@ -24,6 +24,16 @@ episodes follow one another) and ``step`` (env steps since it began):
   bools as bools).
 - ``plots/speed/<agent>`` (every control period), ``plots/reward/<agent>``,
   ``plots/cost/<agent>/{safety,comfort,efficiency}`` (every step).
+- With ``explain=True`` (docs/viewing.md, "The AV explained"), at each game-theoretic
+  decision: ``world/vehicles/<name>/plan``, the car's own predicted path at the
+  equilibrium it played (a line strip, with ``game``, ``role``, ``sigma``, ``accel``,
+  ``games_accel``, ``exact``, ``safety``, ``fallback``), and
+  ``world/vehicles/<name>/prediction``, the path it predicted for the other player;
+  ``explain/<name>``: the game as a markdown document (players, each side's table
+  summarised row by row, the equilibrium marked) and ``explain/<name>/<left|right>``:
+  each side's full game (``rows``, ``cols``, ``ec_accel``, ``ec_sigma``, ``ac_accel``,
+  ``ec_costs`` and ``ac_costs`` row-major with NaN where the search skipped a cell,
+  ``pruned``, ``row``, ``col``, ``exact``, ``chosen``).
 - ``events/collisions``: a red point where and when each collision happened, labelled
   with both cars and who was at fault; ``events/ends/<agent>``: where and why an agent's
   episode ended; ``events/log``: both as text.
@@ -43,7 +53,7 @@ from . import _convert
 from ._core import END_REASONS
 
 FORMAT = "highway-arena recording"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: the AV's decisions explained (explain=True)
 TIMELINE = "sim_time"
 STEP_TIMELINE = "step"
 
@@ -58,6 +68,8 @@ GONE = (150, 150, 150)
 ASPHALT = (90, 90, 90)
 MARKING = (235, 235, 235)
 LANE_END = (220, 40, 40)
+PLAN = (250, 140, 30)
+PREDICTION = (200, 80, 220)
 
 VEHICLE_COLUMNS = ("x", "y", "heading", "s", "d", "speed", "accel", "lane", "target_lane", "end")
 
@@ -191,6 +203,7 @@ class Recording:
                     rrb.TimeSeriesView(name="reward", origin="/plots/reward"),
                     rrb.TimeSeriesView(name="costs", origin="/plots/cost"),
                     rrb.TextLogView(name="events", origin="/events/log"),
+                    rrb.TextDocumentView(name="the AV explained", origin="/explain"),
                 ),
                 column_shares=[3, 2],
             ),
@@ -297,6 +310,102 @@ class Recording:
                 )
                 text = f"t = {self._end - self._offset:.2f} s: {agent} ended: {reason}"
                 self._log("events/log", rr.TextLog(text, level="INFO"))
+
+    def add_explanations(self, explanations):
+        """A step's explained decisions (the extension's dicts): each car's own predicted
+        path and the other player's as line strips under the car, its game as a markdown
+        document and its cost tables as tensors, at the decision's time."""
+        rr = self._rr
+        if not explanations:
+            return
+        for e in explanations:
+            if e["vehicle"] >= len(self._vehicles):
+                continue
+            name = self._vehicles[e["vehicle"]]["name"]
+            self.stream.set_time(TIMELINE, duration=self._offset + float(e["time"]))
+            self.stream.set_time(STEP_TIMELINE, sequence=self._steps)
+            follows = e["ec"] != e["vehicle"]
+            own, other = (e["predicted"], e["planned"]) if follows else (e["planned"], e["predicted"])
+            self._log(
+                f"world/vehicles/{name}/plan",
+                rr.LineStrips2D([[(x, y) for _, x, y, _ in own]] if own else [], radii=0.25, colors=[PLAN]),
+                rr.AnyValues(
+                    game=e["game"],
+                    role=e["role"],
+                    sigma=int(e["sigma"]),
+                    accel=float(e["accel"]),
+                    games_accel=float(e["games_accel"]),
+                    exact=all(t["exact"] for t in e["tables"]),
+                    safety=bool(e["safety"]),
+                    fallback=bool(e["fallback"]),
+                ),
+            )
+            self._log(
+                f"world/vehicles/{name}/prediction",
+                rr.LineStrips2D([[(x, y) for _, x, y, _ in other]] if other else [], radii=0.2, colors=[PREDICTION]),
+            )
+            self._log(f"explain/{name}", rr.TextDocument(self._explained_markdown(e), media_type="text/markdown"))
+            for t in e["tables"]:
+                side = "left" if t["side"] < 0 else "right"
+                self._log(
+                    f"explain/{name}/{side}",
+                    rr.AnyValues(
+                        rows=len(t["ec_actions"]),
+                        cols=len(t["ac_actions"]),
+                        ec_accel=np.asarray([a for a, _ in t["ec_actions"]], dtype=np.float64),
+                        ec_sigma=np.asarray([sigma for _, sigma in t["ec_actions"]], dtype=np.float64),
+                        ac_accel=np.asarray(t["ac_actions"], dtype=np.float64),
+                        ec_costs=np.asarray(t["ec_costs"], dtype=np.float64),
+                        ac_costs=np.asarray(t["ac_costs"], dtype=np.float64),
+                        pruned=np.asarray(t["pruned"], dtype=bool),
+                        row=int(t["row"]),
+                        col=int(t["col"]),
+                        exact=bool(t["exact"]),
+                        chosen=e["chosen"] is not None and e["tables"][e["chosen"]] is t,
+                    ),
+                )
+        self._at(self._end)
+
+    def _name(self, index):
+        return self._vehicles[index]["name"] if index is not None and index < len(self._vehicles) else "-"
+
+    def _explained_markdown(self, e) -> str:
+        """A decision as markdown: the players, then per side the equilibrium and, per EC
+        action in play, AC's best reply and both costs there (the equilibrium row in bold)."""
+        me = self._name(e["vehicle"])
+        lines = [
+            f"### {me} at t = {e['time']:.2f} s: {e['game']}, {e['role']}",
+            f"EC (leader) **{self._name(e['ec'])}**; commanded a = {e['accel']:+.2f} m/s² "
+            f"(games: {e['games_accel']:+.2f}), sigma = {e['sigma']:+d}"
+            + (", **safety override**" if e["safety"] else "")
+            + (", **MPC fallback**" if e["fallback"] else ""),
+        ]
+        for at, t in enumerate(e["tables"]):
+            rows, cols = len(t["ec_actions"]), len(t["ac_actions"])
+            ec = np.asarray(t["ec_costs"]).reshape(rows, cols)
+            ac = np.asarray(t["ac_costs"]).reshape(rows, cols)
+            chosen = " (chosen)" if e["chosen"] == at else ""
+            skipped = int(np.isnan(ec).sum() + np.isnan(ac).sum())
+            lines += [
+                "",
+                f"#### {'left' if t['side'] < 0 else 'right'} side{chosen}: AC {self._name(t['adjacent'])}, "
+                f"{rows} x {cols}, equilibrium ({t['row']}, {t['col']}) "
+                f"{'exact' if t['exact'] else 'inexact'}, J_EC = {t['cost']:.4g}; "
+                f"{skipped} of {2 * rows * cols} cells skipped, {sum(t['pruned'])} rows pruned",
+                "",
+                "| EC a | sigma | AC reply a | J_EC | J_AC |",
+                "|---:|---:|---:|---:|---:|",
+            ]
+            for r, (a, sigma) in enumerate(t["ec_actions"]):
+                if t["pruned"][r]:
+                    continue
+                known = np.where(np.isnan(ac[r]), np.inf, ac[r])
+                c = t["col"] if r == t["row"] else int(np.argmin(known))
+                cells = [f"{a:+.2f}", f"{sigma:+d}", f"{t['ac_actions'][c]:+.2f}", f"{ec[r, c]:.4g}", f"{ac[r, c]:.4g}"]
+                if r == t["row"]:
+                    cells = [f"**{cell}**" for cell in cells]
+                lines.append("| " + " | ".join(cells) + " |")
+        return "\n".join(lines)
 
     def _add_frames(self, frames: dict):
         """Keeps frames to write, and where each vehicle was at the last of them."""

@@ -11,7 +11,9 @@ use serde::{Deserialize, Serialize};
 
 use super::costs::{self, CostComponents};
 use super::field::{self, Field, FieldParams, Obstacle};
-use super::games::{Adjacent, Decision, DecisionParams, Game, LaneOption, Needs, Player, Situation};
+use super::games::{
+    Adjacent, Decision, DecisionParams, Game, GameExplained, LaneOption, Needs, Player, Profile, SideGame, Situation,
+};
 use super::jerk::{AccelRamp, Exemption};
 use super::merge::UnderWay;
 use super::mpc::{self, Mpc, MpcError, MpcParams, MpcProblem, MpcSolution};
@@ -424,15 +426,31 @@ fn observed(scene: &Scene, id: VehicleId) -> (f64, LaneChange) {
     car.decided.unwrap_or((car.accel, car.lane_change()))
 }
 
-/// A follower's acceleration: its part of the side game against its partner (Nash), its
-/// best response to the partner's decision of this period (Stackelberg), or, with no
-/// partner in play, the best for itself alone.
-fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decision {
+/// What a follower plays: alone (no partner in play: the best for itself, as the EC of
+/// its own lane's game), or its part of the side game against its partner. Returned by
+/// value once per decision: boxing the larger variant would allocate on the driving path.
+#[allow(clippy::large_enum_variant)]
+enum Followed {
+    Alone(Situation),
+    Answer {
+        partner: VehicleId,
+        side: i8,
+        view: Situation,
+        game: SideGame,
+        /// Its action is the column: AC's equilibrium part (Nash) or best reply (Stackelberg).
+        profile: Profile,
+    },
+}
+
+/// The game a follower plays: its part of the side game against its partner (Nash),
+/// its best response to the partner's decision of this period (Stackelberg), or, with no
+/// partner in play, the game of its own lane alone.
+fn follow_game(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Followed {
     let alone = || {
         let (mut own, _) = situation(scene, id, params);
         own.sides = [None, None];
         own.committed = None;
-        own.decide(Game::Nash, &params.decision)
+        Followed::Alone(own)
     };
     let Some(partner) = partner(scene, id, params) else { return alone() };
     let (view, adjacent) = situation(scene, partner, params);
@@ -441,14 +459,14 @@ fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decisi
         return alone();
     }
     let side = side.sigma();
-    let accel = match game {
+    let (side_game, profile) = match game {
         Game::Nash => {
             let side_game = view.side_game(side, &params.decision, Needs::Nash);
             if side_game.ec_actions.is_empty() {
                 return alone();
             }
             let profile = side_game.nash(); // eq. (15b) / (16e–f)
-            side_game.ac_actions[profile.col]
+            (side_game, profile)
         }
         Game::Stackelberg => {
             let (accel, change) = observed(scene, partner);
@@ -456,10 +474,23 @@ fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decisi
             let me = player(scene, scene.car(id), scene.car(id).lane, params);
             let grid = params.decision.game.grid(me.now.speed, me.bounds, scene.control_dt, &params.decision.jerk);
             let side_game = view.side_game_with(side, vec![(accel, sigma)], grid, &params.decision, Needs::Replies);
-            side_game.ac_actions[side_game.table.best_reply(0)] // eq. (17b)
+            let col = side_game.table.best_reply(0); // eq. (17b)
+            (side_game, Profile { row: 0, col, exact: true })
         }
     };
-    Decision { accel, lane_change: LaneChange::Keep, exact: true, ..Decision::default() }
+    Followed::Answer { partner, side, view, game: side_game, profile }
+}
+
+/// A follower's acceleration: the column of the game it plays (`follow_game`), or alone
+/// the Nash decision of its own lane's game.
+fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decision {
+    match follow_game(scene, id, game, params) {
+        Followed::Alone(own) => own.decide(Game::Nash, &params.decision),
+        Followed::Answer { game, profile, .. } => {
+            let accel = game.ac_actions[profile.col];
+            Decision { accel, lane_change: LaneChange::Keep, exact: true, ..Decision::default() }
+        }
+    }
 }
 
 /// The field car `id` plans in: the other cars near it and the road's lines (edges
@@ -532,12 +563,76 @@ fn plan_motion_with(
 /// What car `id`, driven by `gt`, decides this period in its role.
 pub fn decide(scene: &Scene, id: VehicleId, gt: &GtDriver) -> Decision {
     match gt.role {
-        Role::Leader => {
-            let pace = gt.pace.unwrap_or(LANE_CHANGE_DURATION);
-            let under_way = UnderWay { pace, crossing_in: gt.crossing_at.map(|t| t - scene.time) };
-            situation_timed(scene, id, &gt.params, Some(under_way)).0.decide(gt.game, &gt.params.decision)
-        }
+        Role::Leader => leader_situation(scene, id, gt).0.decide(gt.game, &gt.params.decision),
         Role::Follower => follow(scene, id, gt.game, &gt.params),
+    }
+}
+
+/// A leader's situation, its lane change under way timed from the driver's memory, with
+/// the adjacent car of each side.
+fn leader_situation(scene: &Scene, id: VehicleId, gt: &GtDriver) -> (Situation, [Option<VehicleId>; 2]) {
+    let pace = gt.pace.unwrap_or(LANE_CHANGE_DURATION);
+    let under_way = UnderWay { pace, crossing_in: gt.crossing_at.map(|t| t - scene.time) };
+    situation_timed(scene, id, &gt.params, Some(under_way))
+}
+
+/// A game-theoretic car's decision of one control period explained (issue 27): the game
+/// it played, from the same scene and memory as the decision, recomputed only when asked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Explanation {
+    /// The car that decided.
+    pub vehicle: VehicleId,
+    /// Simulated time of the decision (s).
+    pub time: f64,
+    /// Nash or Stackelberg.
+    pub game: Game,
+    /// Leader (the game's EC) or follower (its AC; alone: EC of its own lane's game).
+    pub role: Role,
+    /// The game's EC: the car itself, or the leader a follower answers.
+    pub ec: VehicleId,
+    /// The AC of each side's game (left, right), where there is one.
+    pub adjacent: [Option<VehicleId>; 2],
+    /// The tables, the equilibria, the side chosen, the predicted paths.
+    pub played: GameExplained,
+    /// What the driver then decided (after the safety layer and any fallback).
+    pub decision: Decision,
+    /// How the safety layer lowered the games' acceleration, if it did.
+    pub safety: Option<SafetyOverride>,
+    /// Whether the MPC failed and the driver fell back to the safe command.
+    pub fallback: bool,
+}
+
+/// Explains the decision `step` that car `id`, driven by `gt` (its memory before the
+/// decision), took from `scene`: the decision's game recomputed from the same situation,
+/// so `step` is unchanged whether or not anyone asks.
+pub fn explain(scene: &Scene, id: VehicleId, gt: &GtDriver, step: &GtStep) -> Explanation {
+    let d = &gt.params.decision;
+    let (ec, adjacent, played) = match gt.role {
+        Role::Leader => {
+            let (situation, adjacent) = leader_situation(scene, id, gt);
+            (id, adjacent, situation.explain(gt.game, d))
+        }
+        Role::Follower => match follow_game(scene, id, gt.game, &gt.params) {
+            Followed::Alone(own) => (id, [None, None], own.explain(Game::Nash, d)),
+            Followed::Answer { partner, side, view, game, profile } => {
+                let mut adjacent = [None, None];
+                adjacent[usize::from(side == 1)] = Some(id);
+                (partner, adjacent, view.explain_side(side, game, profile, d))
+            }
+        },
+    };
+    let diagnostics = &step.driver.diagnostics;
+    Explanation {
+        vehicle: id,
+        time: scene.time,
+        game: gt.game,
+        role: gt.role,
+        ec,
+        adjacent,
+        played,
+        decision: step.driver.decision,
+        safety: diagnostics.safety,
+        fallback: diagnostics.fallback.is_some(),
     }
 }
 

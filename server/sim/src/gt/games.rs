@@ -1069,32 +1069,167 @@ impl Situation {
     /// `decide`, computing the cells of EC's tables that `needs` asks for (`Needs::All`:
     /// the whole tables, the reference the fast search is tested against).
     pub fn decide_reading(&self, game: Game, params: &DecisionParams, needs: Needs) -> Decision {
-        let mut best: Option<(f64, SideGame, Profile)> = None;
-        for side in [-1, 1] {
+        let played = self.play(game, params, needs);
+        let Some(chosen) = chosen_side(&played) else {
+            return Decision { exact: false, ..Decision::default() };
+        };
+        let (side_game, profile, cost) = played[chosen].as_ref().expect("a chosen side was played");
+        self.decision_of(side_game, *profile, *cost, params)
+    }
+
+    /// Each side's game (left, right) with its equilibrium (eq. 16c–f or 18c–f) and EC's
+    /// cost there; `None` for a side where EC has no action.
+    fn play(&self, game: Game, params: &DecisionParams, needs: Needs) -> [Option<(SideGame, Profile, f64)>; 2] {
+        [-1, 1].map(|side| {
             let side_game = self.side_game(side, params, needs);
             if side_game.ec_actions.is_empty() {
-                continue;
+                return None;
             }
             let profile = match game {
                 Game::Nash => side_game.nash(),
                 Game::Stackelberg => side_game.table.stackelberg(params.game.follower_tolerance),
             };
             let cost = side_game.table.ec(profile.row, profile.col);
-            if best.as_ref().is_none_or(|(b, ..)| cost < *b) {
-                best = Some((cost, side_game, profile));
-            }
-        }
-        let Some((cost, side_game, profile)) = best else {
-            return Decision { exact: false, ..Decision::default() };
-        };
+            Some((side_game, profile, cost))
+        })
+    }
+
+    /// EC's decision at `profile` of `side_game`.
+    fn decision_of(&self, side_game: &SideGame, profile: Profile, cost: f64, params: &DecisionParams) -> Decision {
         let (accel, sigma) = side_game.ec_actions[profile.row];
         let response = side_game.option.and_then(|o| o.adjacent).map(|_| side_game.ac_actions[profile.col]);
-        let predicted = self.components(&side_game, profile, params);
+        let predicted = self.components(side_game, profile, params);
         let full = self.duration(accel, sigma, params);
         let duration = Some(full).filter(|&t| sigma != 0 && t < LANE_CHANGE_DURATION);
         let crossing = self.crossing_time(sigma, full, params);
         let aborted = sigma == 0 && self.binding().is_some();
         let (lane_change, exact) = (LaneChange::from_sigma(sigma), profile.exact);
         Decision { accel, lane_change, predicted, cost, response, exact, duration, crossing, aborted }
+    }
+
+    /// `decide` again, keeping what it played: both sides' games as the search computed
+    /// them, their equilibria, the side chosen, and the predicted paths at its
+    /// equilibrium (issue 27's explanation; only asked for, never on the driving path).
+    pub fn explain(&self, game: Game, params: &DecisionParams) -> GameExplained {
+        let played = self.play(game, params, Needs::of(game, &params.game));
+        let chosen = chosen_side(&played);
+        let mut explained = GameExplained { chosen, ..GameExplained::default() };
+        if let Some((side_game, profile, _)) = chosen.and_then(|at| played[at].as_ref()) {
+            (explained.planned, explained.predicted) = self.paths(side_game, *profile, params);
+        }
+        explained.times = params.prediction.times().collect();
+        explained.sides = played
+            .into_iter()
+            .zip([-1, 1])
+            .map(|(side, sigma)| side.map(|(g, profile, cost)| g.explained(sigma, profile, cost)))
+            .collect();
+        explained
+    }
+
+    /// A follower's game explained: side `side`'s game as the follower built it, at
+    /// `profile`, with EC's and AC's predicted paths there.
+    pub fn explain_side(
+        &self,
+        side: i8,
+        side_game: SideGame,
+        profile: Profile,
+        params: &DecisionParams,
+    ) -> GameExplained {
+        let (planned, predicted) = self.paths(&side_game, profile, params);
+        let cost = side_game.table.ec[profile.row * side_game.table.cols + profile.col];
+        let at = usize::from(side == 1);
+        let mut sides = vec![None, None];
+        sides[at] = Some(side_game.explained(side, profile, cost));
+        let times = params.prediction.times().collect();
+        GameExplained { sides, chosen: Some(at), planned, predicted, times }
+    }
+
+    /// EC's and AC's predicted paths at `profile` of `side_game` (AC's empty with no AC).
+    fn paths(
+        &self,
+        side_game: &SideGame,
+        profile: Profile,
+        params: &DecisionParams,
+    ) -> (Vec<Kinematics>, Vec<Kinematics>) {
+        let ec_actions = [side_game.ec_actions[profile.row]];
+        let ac_actions = [side_game.ac_actions[profile.col]];
+        let option = side_game.option.as_ref();
+        let mut samples = self.samples(&ec_actions, &ac_actions, option, params);
+        (samples.ec.swap_remove(0), samples.ac.pop().unwrap_or_default())
+    }
+}
+
+/// Of the sides played, the one whose equilibrium costs EC least (eq. 16a / 18a; on a
+/// tie the left one).
+fn chosen_side(played: &[Option<(SideGame, Profile, f64)>; 2]) -> Option<usize> {
+    let mut best: Option<(usize, f64)> = None;
+    for (at, side) in played.iter().enumerate() {
+        if let Some((_, _, cost)) = side
+            && best.is_none_or(|(_, b)| *cost < b)
+        {
+            best = Some((at, *cost));
+        }
+    }
+    best.map(|(at, _)| at)
+}
+
+/// A decision explained (issue 27): each side's game as the search computed it, the
+/// side chosen, and the predicted paths at its equilibrium.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct GameExplained {
+    /// The left (sigma = -1) and right (+1) games; `None` where EC had no action.
+    pub sides: Vec<Option<SideExplained>>,
+    /// The side whose equilibrium was played (index into `sides`).
+    pub chosen: Option<usize>,
+    /// EC's predicted path at the chosen profile (one sample per prediction step).
+    pub planned: Vec<Kinematics>,
+    /// AC's predicted path at the chosen profile (empty with no AC).
+    pub predicted: Vec<Kinematics>,
+    /// The time of each path sample after the decision (s).
+    pub times: Vec<f64>,
+}
+
+/// One side's game as the search computed it: the actions, both cost tables (row-major,
+/// NaN where the search proved a cell irrelevant and skipped it), its equilibrium.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SideExplained {
+    /// -1 left, +1 right.
+    pub side: i8,
+    /// EC's actions: (acceleration m/s^2, sigma).
+    pub ec_actions: Vec<(f64, i8)>,
+    /// AC's accelerations (one 0 with no AC).
+    pub ac_actions: Vec<f64>,
+    /// J^EC per (row, col); NaN: not computed.
+    pub ec: Vec<f64>,
+    /// J^AC per (row, col); NaN: not computed.
+    pub ac: Vec<f64>,
+    /// Rows pruned whole (`PayoffTable::pruned`).
+    pub pruned: Vec<bool>,
+    /// The equilibrium's row.
+    pub row: usize,
+    /// Its column.
+    pub col: usize,
+    /// False for a Nash game without a pure equilibrium (`SideGame::nash`).
+    pub exact: bool,
+    /// J^EC there.
+    pub cost: f64,
+}
+
+impl SideGame {
+    fn explained(self, side: i8, profile: Profile, cost: f64) -> SideExplained {
+        let PayoffTable { rows, ec, ac, mut pruned, .. } = self.table;
+        pruned.resize(rows, false);
+        SideExplained {
+            side,
+            ec_actions: self.ec_actions,
+            ac_actions: self.ac_actions,
+            ec,
+            ac,
+            pruned,
+            row: profile.row,
+            col: profile.col,
+            exact: profile.exact,
+            cost,
+        }
     }
 }

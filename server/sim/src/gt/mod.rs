@@ -43,16 +43,17 @@ mod styles;
 // questions the env asks. The games, the field and the MPC stay inside.
 pub use costs::{CostComponents, CostParams};
 pub use driver::{
-    Diagnostics, GtDriver, GtParams, GtStep, InteractionParams, expert_decision, plan, plan_motion, stage_cost,
+    Diagnostics, Explanation, GtDriver, GtParams, GtStep, InteractionParams, expert_decision, explain, plan,
+    plan_motion, stage_cost,
 };
 pub use field::FieldParams;
 #[cfg(test)]
 use games::Needs;
-pub use games::{AdjacentLateral, Decision, DecisionParams, Game, GameParams};
+pub use games::{AdjacentLateral, Decision, DecisionParams, Game, GameExplained, GameParams, SideExplained};
 pub use jerk::JerkParams;
 pub use merge::MergeParams;
 pub use mpc::{Mpc, MpcError, MpcParams, MpcSolution};
-pub use prediction::PredictionParams;
+pub use prediction::{Kinematics, PredictionParams};
 pub use safety::{SafetyOverride, SafetyParams};
 pub use styles::{CostWeights, StyleProfile};
 

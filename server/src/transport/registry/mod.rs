@@ -184,7 +184,8 @@ impl Registry {
         self.panic_if_injected("step");
         let steps: Vec<AgentStep> = env.step(actions)?;
         self.steps.fetch_add(1, Ordering::Relaxed);
-        Ok(StepReply { seq, steps, agents: env.live_agents(), world: env.take_frames() })
+        let (world, explain) = (env.take_frames(), env.take_explanations());
+        Ok(StepReply { seq, steps, agents: env.live_agents(), world, explain })
     }
 
     fn info(&self, party: &Party) -> ServerInfo {

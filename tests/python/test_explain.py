@@ -1,0 +1,144 @@
+"""The AV explained (issue 27, point 3): with ``explain=True`` every game-theoretic
+decision comes with the game it played. On merge-ac (a Stackelberg leader merging beside
+the learner) and merge (a Stackelberg follower answering the learner), the tables shown
+reproduce the decision the AV took: a plain search of the shown cells, written here,
+finds the equilibrium the explanation marks, the side chosen, and the action the car
+then commanded. Explained or not, an episode is the same bits. A recording carries the
+paths and tables at the decisions' times."""
+
+import math
+
+import numpy as np
+import rerun as rr
+
+import highway_arena
+from highway_arena import recording
+
+IDLE, LANE_LEFT = 1, 0
+TOLERANCE = 0.3  # GameParams::follower_tolerance of the shipped normal style
+
+
+def reply(ac, r):
+    known = [c for c in range(ac.shape[1]) if not math.isnan(ac[r, c])]
+    return min(known, key=lambda c: (ac[r, c], c))
+
+
+def searched(t, game, answers):
+    """(row, col, exact) of the table ``t`` as a straightforward search finds it."""
+    rows, cols = len(t["ec_actions"]), len(t["ac_actions"])
+    ec = np.asarray(t["ec_costs"]).reshape(rows, cols)
+    ac = np.asarray(t["ac_costs"]).reshape(rows, cols)
+    in_play = [r for r in range(rows) if not t["pruned"][r]]
+
+    def cost(r, c):
+        assert not math.isnan(ec[r, c]), f"EC's cost at ({r}, {c}) is read but not shown"
+        return ec[r, c]
+
+    if answers and game == "stackelberg":
+        assert rows == 1
+        return 0, reply(ac, 0), True
+    best = None
+    if game == "stackelberg":
+        for r in in_play:
+            floor = ac[r, reply(ac, r)]
+            follower_set = [c for c in range(cols) if ac[r, c] <= floor + TOLERANCE * abs(floor)]
+            worst = max(follower_set, key=lambda c: (cost(r, c), -c))
+            if best is None or cost(r, worst) < best[0]:
+                best = (cost(r, worst), r, worst)
+        return best[1], best[2], True
+    for r in in_play:
+        c = reply(ac, r)
+        if cost(r, c) <= min(cost(q, c) for q in in_play) and (best is None or cost(r, c) < best[0]):
+            best = (cost(r, c), r, c)
+    if best is not None:
+        return best[1], best[2], True
+    committed = all(sigma != 0 for _, sigma in t["ec_actions"])
+    for r in [r for r in in_play if committed or t["ec_actions"][r][1] == 0]:
+        c = reply(ac, r)
+        if best is None or cost(r, c) < best[0]:
+            best = (cost(r, c), r, c)
+    return best[1], best[2], False
+
+
+def check(e):
+    answers = e["ec"] != e["vehicle"]
+    game = "nash" if e["role"] == "follower" and not answers else e["game"]
+    cheapest = None
+    for at, t in enumerate(e["tables"]):
+        row, col, exact = searched(t, game, answers)
+        assert (row, col, exact) == (t["row"], t["col"], t["exact"]), (e["time"], e["vehicle"], at)
+        cost = t["ec_costs"][row * len(t["ac_actions"]) + col]
+        if not answers and (cheapest is None or cost < cheapest[0]):
+            cheapest = (cost, at)
+    if not answers:
+        assert e["chosen"] == (None if cheapest is None else cheapest[1])
+    if e["chosen"] is None:
+        return 0
+    t = e["tables"][e["chosen"]]
+    accel, sigma = (t["ac_actions"][t["col"]], 0) if answers else t["ec_actions"][t["row"]]
+    if not e["fallback"]:
+        assert (accel, sigma) == (e["games_accel"], e["sigma"]), (e["time"], e["vehicle"])
+    return int(sigma != 0)
+
+
+def episode(scenario, action, explain, steps, agent):
+    env = highway_arena.parallel_env(scenario, explain=explain)
+    seen = {"rows": [], "decisions": 0, "lane_changes": 0}
+    observations, infos = env.reset(seed=5)
+    seen["rows"].append((observations, infos))
+    for _ in range(steps):
+        if not env.agents:
+            break
+        seen["rows"].append(env.step({agent: action}))
+        assert (len(env.explanations) > 0) == explain
+        for e in env.explanations:
+            seen["lane_changes"] += check(e)
+            seen["decisions"] += 1
+    env.close()
+    return seen
+
+
+def same(a, b):
+    """Observations, rewards, ends and infos equal, NaN equal to NaN."""
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        np.testing.assert_equal(x, y)
+
+
+def test_on_merge_the_tables_reproduce_the_decision_the_av_took():
+    on = episode("merge-ac", IDLE, True, 100, "ac_0")
+    off = episode("merge-ac", IDLE, False, 100, "ac_0")
+    same(on["rows"], off["rows"])
+    assert on["decisions"] >= 90 and on["lane_changes"] > 0, on["decisions"]
+    on = episode("merge", LANE_LEFT, True, 50, "ec_0")
+    off = episode("merge", LANE_LEFT, False, 50, "ec_0")
+    same(on["rows"], off["rows"])
+    assert on["decisions"] >= 40
+
+
+def test_a_recording_carries_the_plans_and_tables_at_the_decisions_times(tmp_path):
+    path = tmp_path / "explained.rrd"
+    env = highway_arena.parallel_env("merge-ac", explain=True, record=path)
+    env.reset(seed=5)
+    times, shown = [], []
+    for _ in range(20):
+        env.step({"ac_0": IDLE})
+        times += [e["time"] for e in env.explanations]
+        shown += env.explanations
+    env.close()
+    store = rr.chunk.RrdReader(str(path)).stream().collect()
+    frame = store.reader(index=recording.TIMELINE).to_pandas()
+    strips = "/world/vehicles/ec/plan:LineStrips2D:strips"
+    documents = "/explain/ec:TextDocument:text"
+    assert strips in frame.columns and documents in frame.columns, sorted(frame.columns)[:40]
+    logged = frame.loc[frame[strips].map(lambda v: v is not None and len(v) > 0), recording.TIMELINE]
+    assert np.allclose(sorted(logged.dt.total_seconds().to_numpy()), sorted(times))
+    text = frame.loc[frame[documents].map(lambda v: v is not None and len(v) > 0), documents].iloc[0][0]
+    assert "stackelberg" in text and "| EC a |" in text, text
+    # Every cell of the first decision's tables, as it was shown to Python.
+    first = min(times)
+    costs = "/explain/ec/left:ec_costs"
+    seconds = frame[recording.TIMELINE].dt.total_seconds().to_numpy()
+    rows = frame[np.isclose(seconds, first) & frame[costs].map(lambda v: v is not None and len(v) > 0)]
+    assert len(rows) == 1
+    np.testing.assert_equal(np.asarray(rows[costs].iloc[0]), np.asarray(shown[0]["tables"][0]["ec_costs"]))

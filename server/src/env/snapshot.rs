@@ -77,7 +77,8 @@ fn short(hash: &[u8; 32]) -> String {
 }
 
 /// SHA3-256 of the resolved scenario: its `Debug` text, which writes every field (floats
-/// as the shortest text that reads back to the same bits) in declaration order.
+/// as the shortest text that reads back to the same bits) in declaration order, its
+/// source (file name, text, overrides) included.
 pub fn identity(scenario: &arena_sim::Scenario) -> [u8; 32] {
     sha3::Sha3_256::digest(format!("{scenario:?}").as_bytes()).into()
 }

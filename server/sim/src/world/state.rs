@@ -188,3 +188,71 @@ impl World {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::builtin_scenario;
+
+    fn advanced(name: &str, seconds: f64) -> World {
+        let mut world = builtin_scenario(name).unwrap().unwrap().build(7);
+        world.advance(seconds);
+        world
+    }
+
+    #[test]
+    fn a_restored_world_runs_on_as_the_original() {
+        for name in ["highway-gt", "merge-random"] {
+            let mut original = advanced(name, 3.0);
+            let mut restored = builtin_scenario(name).unwrap().unwrap().build(99);
+            restored.restore(original.state()).unwrap();
+            assert!(restored.state() == original.state(), "{name}");
+            original.advance(4.0);
+            restored.advance(4.0);
+            assert!(restored.state() == original.state(), "{name}: the worlds parted");
+        }
+    }
+
+    #[test]
+    fn a_state_that_does_not_fit_is_refused_and_the_world_left_as_it_was() {
+        let world = advanced("merge-random", 1.0);
+        let good = world.state();
+        let cases: Vec<(&str, Box<dyn Fn(&mut WorldState)>)> = vec![
+            ("vehicles", Box::new(|s| drop(s.vehicles.pop()))),
+            ("vehicle 0", Box::new(|s| s.vehicles[0].name.push('x'))),
+            (
+                "another driver",
+                Box::new(|s| {
+                    let idm = matches!(s.vehicles[0].driver, Driver::Idm);
+                    s.vehicles[0].driver =
+                        if idm { Driver::Agent(super::super::AgentCommand::Track) } else { Driver::Idm };
+                }),
+            ),
+            ("a lane the road", Box::new(|s| s.vehicles[1].target_lane = LaneId(9))),
+            ("not finite", Box::new(|s| s.vehicles[1].state.vx = f64::NAN)),
+            ("scene car 1", Box::new(|s| s.scene_cars[1].lane = LaneId(40))),
+            ("sorted order", Box::new(|s| s.order[0] = s.order[1])),
+            (
+                "collision of vehicles",
+                Box::new(|s| {
+                    s.collisions.push(Collision {
+                        rear: crate::VehicleId(0),
+                        front: crate::VehicleId(77),
+                        at_fault: crate::AtFault::Rear,
+                    })
+                }),
+            ),
+            ("time", Box::new(|s| s.time += 1.0)),
+            ("scene taken after", Box::new(|s| s.scene_tick = Some(s.ticks + 1))),
+        ];
+        for (needle, spoil) in cases {
+            let mut bad = good.clone();
+            spoil(&mut bad);
+            let mut target = advanced("merge-random", 2.0);
+            let before = target.state();
+            let error = target.restore(bad).unwrap_err().to_string();
+            assert!(error.contains(needle), "'{needle}' not in: {error}");
+            assert!(target.state() == before, "{needle}: a refused state changed the world");
+        }
+    }
+}

@@ -217,7 +217,8 @@ mod tests {
     fn a_state_that_does_not_fit_is_refused_and_the_world_left_as_it_was() {
         let world = advanced("merge-random", 1.0);
         let good = world.state();
-        let cases: Vec<(&str, Box<dyn Fn(&mut WorldState)>)> = vec![
+        type Spoil = Box<dyn Fn(&mut WorldState)>;
+        let cases: Vec<(&str, Spoil)> = vec![
             ("vehicles", Box::new(|s| drop(s.vehicles.pop()))),
             ("vehicle 0", Box::new(|s| s.vehicles[0].name.push('x'))),
             (

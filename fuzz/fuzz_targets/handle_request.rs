@@ -115,7 +115,9 @@ fn retarget(request: &mut Request, pick: u8, live: &mut [Live]) -> Option<usize>
     };
     match &mut request.body {
         RequestBody::ServerInfo | RequestBody::CreateEnv { .. } => None,
-        RequestBody::Reset { env, seq, .. } | RequestBody::Step { env, seq, .. } => {
+        RequestBody::Reset { env, seq, .. }
+        | RequestBody::Step { env, seq, .. }
+        | RequestBody::Restore { env, seq, .. } => {
             point(env, Some(seq));
             None
         }
@@ -128,7 +130,8 @@ fn retarget(request: &mut Request, pick: u8, live: &mut [Live]) -> Option<usize>
         RequestBody::Render { env, .. }
         | RequestBody::State { env }
         | RequestBody::Specs { env }
-        | RequestBody::Record { env, .. } => {
+        | RequestBody::Record { env, .. }
+        | RequestBody::Snapshot { env } => {
             point(env, None);
             None
         }

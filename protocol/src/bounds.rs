@@ -23,6 +23,10 @@ pub const MAX_OPTION_KEY_PARTS: usize = 10;
 pub const MAX_OPTION_STRING_BYTES: usize = 64 * 1024;
 /// Most actions in one step (one per agent).
 pub const MAX_ACTIONS: usize = 1024;
+/// Largest snapshot a `Restore` may carry (bytes): 4 MiB, chosen here; a snapshot of
+/// highway-gt is about 1 % of it (docs/protocol.md, "Snapshots"), and the server refuses
+/// to take one larger.
+pub const MAX_SNAPSHOT_BYTES: usize = 4 << 20;
 
 /// A part of a request past its bound.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -106,12 +110,16 @@ pub fn check(request: &Request) -> Result<(), BoundError> {
         RequestBody::Reset { options: reset, .. } => options("reset override", &reset.overrides),
         RequestBody::Step { actions: step, .. } => actions(step),
         RequestBody::StepBatch { steps } => steps.iter().try_for_each(|step| actions(&step.actions)),
+        RequestBody::Restore { snapshot, .. } => {
+            at_most(|| "the snapshot".to_string(), snapshot.len(), MAX_SNAPSHOT_BYTES, "bytes")
+        }
         RequestBody::ServerInfo
         | RequestBody::Render { .. }
         | RequestBody::State { .. }
         | RequestBody::Specs { .. }
         | RequestBody::Close { .. }
-        | RequestBody::Record { .. } => Ok(()),
+        | RequestBody::Record { .. }
+        | RequestBody::Snapshot { .. } => Ok(()),
     }
 }
 
@@ -203,6 +211,9 @@ mod tests {
         );
         let agents = |n: usize| (0..n).map(|k| (format!("a{k}"), Action::Meta(1))).collect::<Vec<_>>();
         bound_holds(step_with(agents(MAX_ACTIONS)), step_with(agents(MAX_ACTIONS + 1)), "entries", MAX_ACTIONS);
+        let restore =
+            |n: usize| Request::new(ClientId(1), RequestBody::Restore { env: EnvId(1), seq: 1, snapshot: vec![7; n] });
+        bound_holds(restore(MAX_SNAPSHOT_BYTES), restore(MAX_SNAPSHOT_BYTES + 1), "bytes", MAX_SNAPSHOT_BYTES);
         let agent = |n: usize| vec![("x".repeat(n), Action::Meta(1))];
         bound_holds(step_with(agent(MAX_NAME_BYTES)), step_with(agent(MAX_NAME_BYTES + 1)), "bytes", MAX_NAME_BYTES);
         let batch = |n: usize| {

@@ -49,11 +49,15 @@ pub enum ErrorCode {
     /// The server is shutting down: it answers the requests it had begun and refuses new
     /// ones; its envs end with it.
     ShuttingDown = 16,
+    /// 17: a snapshot given to `Restore` is not one this env can take: not a snapshot,
+    /// truncated or corrupted, of another protocol version, scenario or env options
+    /// (version 7).
+    InvalidSnapshot = 17,
 }
 
 impl ErrorCode {
     /// Every code, in number order.
-    pub const ALL: [ErrorCode; 17] = [
+    pub const ALL: [ErrorCode; 18] = [
         ErrorCode::MalformedRequest,
         ErrorCode::WrongVersion,
         ErrorCode::PayloadTooLarge,
@@ -71,6 +75,7 @@ impl ErrorCode {
         ErrorCode::AgentNotLive,
         ErrorCode::InvalidOption,
         ErrorCode::ShuttingDown,
+        ErrorCode::InvalidSnapshot,
     ];
 
     /// The stable number of the code, as on the wire.
@@ -178,7 +183,8 @@ mod tests {
         assert_eq!(ErrorCode::AgentNotLive.as_u16(), 14);
         assert_eq!(ErrorCode::InvalidOption.as_u16(), 15);
         assert_eq!(ErrorCode::ShuttingDown.as_u16(), 16);
-        assert!(decode::<ErrorCode>(&[17]).is_err(), "no code 17 yet");
+        assert_eq!(ErrorCode::InvalidSnapshot.as_u16(), 17);
+        assert!(decode::<ErrorCode>(&[18]).is_err(), "no code 18 yet");
     }
 
     #[test]

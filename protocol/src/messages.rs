@@ -140,6 +140,25 @@ pub enum RequestBody {
         /// On or off.
         on: bool,
     },
+    /// The env's whole state as bytes (version 7): its world (every vehicle, every
+    /// driver's memory, the RNG, the clock), its agents and their episodes' figures, its
+    /// seed stream; named by scenario, a hash of the resolved scenario and the protocol
+    /// version (docs/protocol.md, "Snapshots").
+    Snapshot {
+        /// The env.
+        env: EnvId,
+    },
+    /// Puts a `Snapshot`'s state into the env (version 7), which then continues exactly
+    /// as the env the snapshot was taken of would have. Sequenced as `Reset` is; the reply
+    /// is a `Reset` reply of the agents live in the snapshot.
+    Restore {
+        /// The env.
+        env: EnvId,
+        /// Sequence number (see `Step`).
+        seq: u64,
+        /// The bytes a `Snapshot` reply carried, at most `bounds::MAX_SNAPSHOT_BYTES`.
+        snapshot: Vec<u8>,
+    },
 }
 
 /// One env's step within a `StepBatch`.
@@ -417,6 +436,8 @@ pub enum ReplyBody {
     /// To `Record`: turned on after a reset, the world now (road, vehicles, a frame), so
     /// a recording can begin mid-episode; `None` when turned off or before any reset.
     Recording(Option<Box<WorldStart>>),
+    /// To `Snapshot`: the env's state (version 7), for `Restore`.
+    Snapshot(Vec<u8>),
 }
 
 /// One env's result within a batch.
@@ -832,6 +853,8 @@ mod tests {
             RequestBody::Close { env },
             RequestBody::Record { env, on: true },
             RequestBody::Record { env, on: false },
+            RequestBody::Snapshot { env },
+            RequestBody::Restore { env, seq: 9, snapshot: vec![0, 1, 255, 7] },
         ]
     }
 
@@ -871,6 +894,8 @@ mod tests {
             ReplyBody::Error(error),
             ReplyBody::Recording(Some(world_start())),
             ReplyBody::Recording(None),
+            ReplyBody::Snapshot(vec![1, 2, 3]),
+            ReplyBody::Snapshot(vec![]),
         ]
     }
 
@@ -932,14 +957,14 @@ mod tests {
 
     #[test]
     fn every_variant_is_covered_by_the_round_trips() {
-        // Variant indexes in the fixtures: requests 0..=9, replies 0..=10 (the byte after
+        // Variant indexes in the fixtures: requests 0..=11, replies 0..=11 (the byte after
         // the one-byte version and, for requests, the client id).
         let request_variants: std::collections::BTreeSet<u8> =
             requests().into_iter().map(|body| encode(&Request::new(ClientId(1), body))[2]).collect();
-        assert_eq!(request_variants, (0..=9).collect());
+        assert_eq!(request_variants, (0..=11).collect());
         let reply_variants: std::collections::BTreeSet<u8> =
             replies().into_iter().map(|body| encode(&Reply::new(body))[1]).collect();
-        assert_eq!(reply_variants, (0..=10).collect());
+        assert_eq!(reply_variants, (0..=11).collect());
     }
 
     #[test]

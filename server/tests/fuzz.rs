@@ -29,6 +29,8 @@ fn seeds() -> Vec<Vec<u8>> {
         request(RequestBody::Reset { env: EnvId(3), seq: 1, seed: Some(4), options: ResetOptions::default() }),
         request(RequestBody::Step { env: EnvId(3), seq: 2, actions: vec![("ec_0".into(), Action::Meta(3))] }),
         request(RequestBody::Record { env: EnvId(3), on: true }),
+        request(RequestBody::Snapshot { env: EnvId(3) }),
+        request(RequestBody::Restore { env: EnvId(3), seq: 3, snapshot: b"ARENASNP\x07\x00 not a state".to_vec() }),
     ]
 }
 
@@ -66,7 +68,9 @@ fn answered(registry: &Registry, bytes: &[u8]) {
                     RequestBody::Render { .. }
                     | RequestBody::State { .. }
                     | RequestBody::Specs { .. }
-                    | RequestBody::Record { .. },
+                    | RequestBody::Record { .. }
+                    | RequestBody::Snapshot { .. }
+                    | RequestBody::Restore { .. },
                     ReplyBody::Error(e),
                 ) => {
                     matches!(e.code, ErrorCode::UnknownEnv | ErrorCode::PayloadTooLarge | ErrorCode::MalformedRequest)
@@ -90,13 +94,14 @@ proptest! {
 
     #[test]
     fn mutated_requests_are_answered(
-        which in 0usize..4,
+        which in any::<prop::sample::Index>(),
         flips in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..6),
         cut in any::<prop::sample::Index>(),
         truncate in any::<bool>(),
     ) {
         let registry = registry();
-        let mut bytes = seeds()[which].clone();
+        let seeds = seeds();
+        let mut bytes = seeds[which.index(seeds.len())].clone();
         for (at, value) in flips {
             let i = at.index(bytes.len());
             bytes[i] = value;
@@ -106,4 +111,67 @@ proptest! {
         }
         answered(&registry, &bytes);
     }
+
+    /// A real snapshot, damaged (bytes changed, cut short, and with its checksum made to
+    /// match again, as a forger would): restored or refused as `InvalidSnapshot`, never a
+    /// panic, and the env steps on.
+    #[test]
+    fn damaged_snapshots_are_refused_or_restored(
+        flips in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..6),
+        cut in any::<prop::sample::Index>(),
+        truncate in any::<bool>(),
+        forge in any::<bool>(),
+    ) {
+        let (registry, env, mut bytes) = live_snapshot();
+        let body = bytes.len() - 32;
+        for (at, value) in flips {
+            // Past the header: the header's own refusals have their unit test.
+            let i = 10 + at.index(body - 10);
+            bytes[i] = value;
+        }
+        if truncate {
+            bytes.truncate(cut.index(bytes.len() + 1));
+        }
+        if forge && bytes.len() > 42 {
+            let end = bytes.len() - 32;
+            let checksum = <sha3::Sha3_256 as sha3::Digest>::digest(&bytes[..end]);
+            bytes[end..].copy_from_slice(&checksum);
+        }
+        let reply = ask(&registry, RequestBody::Restore { env, seq: 5, snapshot: bytes });
+        match reply {
+            ReplyBody::Reset(_) => {}
+            ReplyBody::Error(e) => prop_assert_eq!(e.code, ErrorCode::InvalidSnapshot, "{}", e),
+            other => prop_assert!(false, "a restore got {:?}", other),
+        }
+        let step = ask(&registry, RequestBody::Step { env, seq: 6, actions: vec![] });
+        let steps_on = match &step {
+            ReplyBody::Step(_) => true,
+            ReplyBody::Error(e) => e.code == ErrorCode::AgentNotLive,
+            _ => false,
+        };
+        prop_assert!(steps_on, "after a restore, a step got {:?}", step);
+    }
+}
+
+fn ask(registry: &Registry, body: RequestBody) -> ReplyBody {
+    let reply: Reply = decode(&registry.handle(&encode(&Request::new(ClientId(7), body)))).expect("a reply");
+    reply.body
+}
+
+/// A registry with a merge env stepped three times, and that env's snapshot.
+fn live_snapshot() -> (Registry, EnvId, Vec<u8>) {
+    let registry = registry();
+    let scenario = ScenarioSource::Named("merge".into());
+    let ReplyBody::Created { env, .. } =
+        ask(&registry, RequestBody::CreateEnv { scenario, options: CreateOptions::default() })
+    else {
+        panic!("merge is created")
+    };
+    let reset = RequestBody::Reset { env, seq: 1, seed: Some(3), options: ResetOptions::default() };
+    assert!(matches!(ask(&registry, reset), ReplyBody::Reset(_)));
+    for seq in 2..=4 {
+        assert!(matches!(ask(&registry, RequestBody::Step { env, seq, actions: vec![] }), ReplyBody::Step(_)));
+    }
+    let ReplyBody::Snapshot(bytes) = ask(&registry, RequestBody::Snapshot { env }) else { panic!("a snapshot") };
+    (registry, env, bytes)
 }

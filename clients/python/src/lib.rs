@@ -766,6 +766,25 @@ impl Env {
         }
     }
 
+    /// The env's whole state as bytes (docs/protocol.md, "Snapshots").
+    fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        let bytes = self.with(py, |env| env.snapshot())?;
+        Ok(PyBytes::new(py, &bytes))
+    }
+
+    /// Puts a snapshot's state into the env: (observations, infos) of the agents live in
+    /// it, as `reset` gives them.
+    fn restore<'py>(&self, py: Python<'py>, snapshot: Vec<u8>) -> PyResult<Bound<'py, PyTuple>> {
+        let mut reply = self.with(py, move |env| env.restore(snapshot))?;
+        *lock(&self.world) = PendingWorld { start: reply.world.take(), frames: Vec::new() };
+        let (observations, infos) = (PyDict::new(py), PyDict::new(py));
+        for start in &reply.agents {
+            observations.set_item(&start.agent, observation_value(py, &start.observation)?)?;
+            infos.set_item(&start.agent, info_dict(py, &start.info)?)?;
+        }
+        PyTuple::new(py, [observations.into_any(), infos.into_any()])
+    }
+
     /// The global state, as an observation value.
     fn state<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let state = self.with(py, |env| env.state())?;

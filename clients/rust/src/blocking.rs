@@ -136,6 +136,16 @@ impl Env {
         self.client.runtime.block_on(self.env.record(on))
     }
 
+    /// See `crate::RemoteEnv::snapshot`.
+    pub fn snapshot(&self) -> Result<Vec<u8>> {
+        self.client.runtime.block_on(self.env.snapshot())
+    }
+
+    /// See `crate::RemoteEnv::restore`.
+    pub fn restore(&mut self, snapshot: Vec<u8>) -> Result<ResetReply> {
+        self.client.runtime.block_on(self.env.restore(snapshot))
+    }
+
     /// See `crate::RemoteEnv::close`.
     pub fn close(&mut self) -> Result<()> {
         self.client.runtime.block_on(self.env.close())

@@ -469,6 +469,8 @@ fn request_name(body: &RequestBody) -> &'static str {
         RequestBody::Specs { .. } => "specs",
         RequestBody::Close { .. } => "close",
         RequestBody::Record { .. } => "record",
+        RequestBody::Snapshot { .. } => "snapshot",
+        RequestBody::Restore { .. } => "restore",
     }
 }
 
@@ -553,6 +555,28 @@ impl RemoteEnv {
         match self.client.call(&self.server, RequestBody::Record { env: self.id, on }, true).await? {
             ReplyBody::Recording(start) => Ok(start.map(|start| *start)),
             other => Err(unexpected("Recording", &other)),
+        }
+    }
+
+    /// The env's whole state as bytes (docs/protocol.md, "Snapshots"): give them to
+    /// `restore` on this env or another of the same scenario and options, on any server
+    /// of this protocol version, to continue from here bit for bit.
+    pub async fn snapshot(&self) -> Result<Vec<u8>> {
+        match self.client.call(&self.server, RequestBody::Snapshot { env: self.id }, true).await? {
+            ReplyBody::Snapshot(bytes) => Ok(bytes),
+            other => Err(unexpected("Snapshot", &other)),
+        }
+    }
+
+    /// Puts a snapshot's state into this env; the reply is a reset's, of the agents live
+    /// in the snapshot. A snapshot of another scenario, options or protocol version, or
+    /// damaged, is refused (`ErrorCode::InvalidSnapshot`) and the env stays as it was.
+    pub async fn restore(&mut self, snapshot: Vec<u8>) -> Result<ResetReply> {
+        self.seq += 1;
+        let body = RequestBody::Restore { env: self.id, seq: self.seq, snapshot };
+        match self.client.call(&self.server, body, true).await? {
+            ReplyBody::Reset(reply) => Ok(reply),
+            other => Err(unexpected("Reset", &other)),
         }
     }
 

@@ -76,6 +76,9 @@ fn requests() -> Vec<(&'static str, u8, Vec<u8>)> {
         ("state", 0, request(RequestBody::State { env })),
         ("specs", 0, request(RequestBody::Specs { env })),
         ("record", 0, request(RequestBody::Record { env, on: true })),
+        ("snapshot", 0, request(RequestBody::Snapshot { env })),
+        // Not a snapshot: the target's mutations reach the snapshot reader from here.
+        ("restore", 0, request(RequestBody::Restore { env, seq: 2, snapshot: b"ARENASNP\x07\x00".to_vec() })),
         ("close", 0, request(RequestBody::Close { env })),
     ]
 }

@@ -43,7 +43,7 @@ pub enum Role {
 }
 
 /// Who drives a car, as other drivers may know it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum DriverKind {
     /// A learner outside the process.
     Agent,
@@ -54,7 +54,7 @@ pub enum DriverKind {
 }
 
 /// One car as drivers see it at the start of the control period.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Car {
     /// Its id in the world.
     pub id: VehicleId,

@@ -18,9 +18,11 @@ use crate::road::{LaneChange, LaneId, Road};
 use crate::scene::{Car, DriverKind, Role, Scene};
 
 mod collision;
+mod state;
 use crate::traffic::{self, IdmDecision, IdmParams};
 use collision::Approach;
 pub use collision::{AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, LaneEntry};
+pub use state::{RngState, StateError, WorldState};
 
 pub use crate::scene::{Status, VehicleId};
 

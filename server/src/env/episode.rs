@@ -54,7 +54,7 @@ pub struct Figures {
 }
 
 /// The running figures of one agent's episode.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EpisodeStats {
     steps: u32,
     total_reward: f64,

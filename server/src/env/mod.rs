@@ -10,7 +10,7 @@
 //! ticks and the costs sampled on the way), then per agent observe (`observation`),
 //! reward (`reward`), terminate (`episode`) and info (`info`). While recording is on,
 //! `recording` assembles the world's frames for the reply (the simulate phase takes one
-//! per control period).
+//! per control period). `snapshot` saves the whole state as bytes and restores it.
 
 mod action;
 mod episode;
@@ -23,6 +23,7 @@ mod render;
 mod reward;
 mod risk;
 mod simulate;
+mod snapshot;
 
 use arena_protocol::{
     Action, ActionType, AgentStart, AgentStep, BuiltinPolicy, CreateOptions, DecisionExplained, EndReason, EnvSpecs,
@@ -85,6 +86,11 @@ pub struct Env {
     scratch: StepScratch,
     /// Whether step replies explain the game-theoretic decisions (`explain`).
     explain: bool,
+    /// SHA3-256 of the resolved scenario, which snapshots name (`snapshot`).
+    identity: [u8; 32],
+    /// The current episode's world seed and reset overrides, from which a snapshot's
+    /// episode is built again.
+    reset_inputs: (u64, Vec<(String, arena_protocol::OptionValue)>),
 }
 
 /// What `step` works in, per agent slot or per live agent.
@@ -175,6 +181,8 @@ impl Env {
             })
             .collect();
         Ok(Env {
+            identity: snapshot::identity(&scenario),
+            reset_inputs: (0, Vec::new()),
             episode: scenario.clone(),
             scenario,
             observation: options.observation.unwrap_or(ObservationKind::Kinematics),
@@ -268,6 +276,7 @@ impl Env {
         self.seeds = seeds;
         self.episode = episode;
         self.cycles = 0;
+        self.reset_inputs = (world_seed, options.overrides.clone());
         let periods = self.control_periods(&world);
         for agent in &mut self.agents {
             agent.live = true;

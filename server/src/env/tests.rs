@@ -1092,3 +1092,114 @@ fn explanations_that_could_not_fit_a_reply_are_refused_at_reset() {
     assert_eq!(error.code, ErrorCode::InvalidScenario);
     assert!(error.message.contains("explain:"), "{}", error.message);
 }
+
+// --- Snapshots (issue 27, point 4) ---
+
+/// Steps `env` `n` times with a fixed cycle of meta actions for every live agent,
+/// returning each step's result as bytes (errors included), to compare bit for bit.
+fn run(env: &mut Env, n: usize, offset: usize) -> Vec<Vec<u8>> {
+    use MetaAction::{Faster, Idle, LaneLeft, LaneRight, Slower};
+    let cycle = [Idle, Faster, Idle, Slower, Idle, Idle, LaneLeft, Idle, Idle, Idle, Slower, Idle, LaneRight, Idle];
+    (0..n)
+        .map(|k| {
+            let action = cycle[(k + offset) % cycle.len()];
+            let actions: Vec<(String, Action)> =
+                env.live_agents().into_iter().map(|agent| (agent, Action::Meta(action.code()))).collect();
+            match env.step(&actions) {
+                Ok(steps) => arena_protocol::encode(&steps),
+                Err(e) => e.message.into_bytes(),
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn a_snapshot_restored_into_a_fresh_env_continues_bit_for_bit() {
+    for name in ["highway-gt", "merge-random", "merge"] {
+        let expert = Some(arena_protocol::Game::Stackelberg);
+        let options = CreateOptions { expert, max_cycles: Some(150), ..CreateOptions::default() };
+        let mut original = env(name, options.clone());
+        original.reset(Some(11), NO_OPTIONS).unwrap();
+        run(&mut original, 50, 0);
+        let snapshot = original.snapshot().unwrap();
+        let a = run(&mut original, 50, 50);
+        let stepped = a.iter().filter(|step| step.len() > 200).count();
+        eprintln!("{name}: {stepped} steps after the snapshot, {} bytes", snapshot.len());
+        assert!(stepped > 0, "{name}: the agents stepped after the snapshot");
+
+        // Another env of the scenario (another entropy, other seeds), reset otherwise.
+        let (_, file, text) = arena_sim::BUILTIN_SCENARIOS.into_iter().find(|(n, ..)| *n == name).unwrap();
+        let mut fresh = Env::from_text(file, text, &options, 99).unwrap();
+        fresh.reset(Some(5), NO_OPTIONS).unwrap();
+        run(&mut fresh, 3, 0);
+        let starts = fresh.restore(&snapshot).unwrap();
+        assert_eq!(starts.iter().map(|s| s.agent.clone()).collect::<Vec<_>>(), fresh.live_agents());
+        assert!(fresh.snapshot().unwrap() == snapshot, "{name}: restoring changes nothing of the state");
+        let b = run(&mut fresh, 50, 50);
+        assert!(a == b, "{name}: the restored env stepped otherwise");
+
+        // Back in the original env too, after it ran on: a branch point.
+        original.restore(&snapshot).unwrap();
+        assert!(run(&mut original, 50, 50) == a, "{name}: restored into its own env");
+        // A reset without a seed continues the seed stream the snapshot holds.
+        fresh.restore(&snapshot).unwrap();
+        original.restore(&snapshot).unwrap();
+        let (x, y) = (fresh.reset(None, NO_OPTIONS).unwrap(), original.reset(None, NO_OPTIONS).unwrap());
+        assert!(arena_protocol::encode(&x) == arena_protocol::encode(&y), "{name}: seed stream");
+    }
+}
+
+#[test]
+fn a_snapshot_of_another_scenario_options_or_version_or_damaged_is_refused_and_the_env_goes_on() {
+    let mut merge = env("merge", CreateOptions::default());
+    merge.reset(Some(2), NO_OPTIONS).unwrap();
+    run(&mut merge, 5, 0);
+    let snapshot = merge.snapshot().unwrap();
+    let mut target = env("merge", CreateOptions::default());
+    target.reset(Some(3), NO_OPTIONS).unwrap();
+    let before = target.snapshot().unwrap();
+    let refused = |target: &mut Env, bytes: &[u8], needles: &[&str]| {
+        let error = target.restore(bytes).unwrap_err();
+        assert_eq!(error.code, ErrorCode::InvalidSnapshot, "{error}");
+        assert!(error.env_usable);
+        for needle in needles {
+            assert!(error.message.contains(needle), "'{needle}' not in: {}", error.message);
+        }
+    };
+    // Another scenario.
+    let mut highway = env("highway-gt", CreateOptions::default());
+    highway.reset(Some(1), NO_OPTIONS).unwrap();
+    refused(&mut highway, &snapshot, &["scenario 'merge'", "scenario 'highway-gt'", "resolved content"]);
+    // The same scenario with an override: another resolved content.
+    let overridden = CreateOptions {
+        overrides: vec![("vehicle.ac.speed".into(), OptionValue::Float(19.0))],
+        ..CreateOptions::default()
+    };
+    let mut other = env("merge", overridden);
+    other.reset(Some(1), NO_OPTIONS).unwrap();
+    refused(&mut other, &snapshot, &["scenario 'merge'", "resolved content"]);
+    // Other options.
+    let mut longer = env("merge", CreateOptions { max_cycles: Some(7), ..CreateOptions::default() });
+    longer.reset(Some(1), NO_OPTIONS).unwrap();
+    refused(&mut longer, &snapshot, &["max_cycles 7", "same options"]);
+    // Another protocol version, in its header.
+    let mut versioned = snapshot.clone();
+    versioned[8] = versioned[8].wrapping_add(1);
+    let (theirs, ours) = (arena_protocol::PROTOCOL_VERSION + 1, arena_protocol::PROTOCOL_VERSION);
+    refused(&mut target, &versioned, &[&format!("protocol version {theirs}"), &format!("speaks version {ours}")]);
+    // Not a snapshot, truncated, corrupted.
+    refused(&mut target, b"hello", &["not an env snapshot"]);
+    for cut in [10, 11, 41, 42, snapshot.len() / 2, snapshot.len() - 1] {
+        refused(&mut target, &snapshot[..cut], &["truncated"]);
+    }
+    for at in [12, snapshot.len() / 2, snapshot.len() - 40, snapshot.len() - 1] {
+        let mut corrupted = snapshot.clone();
+        corrupted[at] ^= 0x10;
+        refused(&mut target, &corrupted, &["corrupted"]);
+    }
+    // The refused restores left the env as it was, and it steps on.
+    assert!(target.snapshot().unwrap() == before, "a refused restore changed the env");
+    assert!(target.step(&[]).is_ok());
+    // Before any reset: nothing to snapshot.
+    assert_eq!(env("merge", CreateOptions::default()).snapshot().unwrap_err().code, ErrorCode::NotReset);
+}

@@ -38,6 +38,7 @@ from ._errors import (
     ScenarioError,
     ServerGoneError,
     ServerNotFoundError,
+    SnapshotError,
 )
 from . import _connection
 from ._connection import CONNECTION_KEYWORDS, default_connect
@@ -70,6 +71,7 @@ __all__ = [
     "ScenarioError",
     "ServerGoneError",
     "ServerNotFoundError",
+    "SnapshotError",
     "VectorEnv",
     "batch_env",
     "default_connect",

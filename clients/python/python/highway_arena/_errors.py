@@ -47,6 +47,11 @@ class RequestTooLargeError(ArenaError, ValueError):
     """A request, or one of its strings or lists, is past its bound (docs/protocol.md, "Bounds")."""
 
 
+class SnapshotError(ArenaError, ValueError):
+    """A snapshot ``restore`` refused: not a snapshot, truncated or corrupted, or of
+    another scenario, env options or protocol version (the message names which)."""
+
+
 class EnvClosedError(ArenaError):
     """The env was closed (by this client, by idling, or because the server forgot it)."""
 
@@ -67,6 +72,7 @@ _BY_CODE = {
     "PayloadTooLarge": RequestTooLargeError,
     "EnvClosed": EnvClosedError,
     "UnknownEnv": EnvClosedError,
+    "InvalidSnapshot": SnapshotError,
 }
 
 _HINTS = {

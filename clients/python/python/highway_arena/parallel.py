@@ -212,6 +212,29 @@ class ParallelEnv(_ParallelEnv):
         return observations, rewards, terminations, truncations, infos
 
     @translated
+    def snapshot(self) -> bytes:
+        """The env's whole state as bytes: the world (every vehicle, every driver's memory,
+        the RNG), the agents, their episodes' figures and the seed stream. ``restore`` it
+        into this env or another of the same scenario and options, on any server of the
+        same protocol version, to continue from here bit for bit (docs/protocol.md,
+        "Snapshots")."""
+        return bytes(self._env.snapshot())
+
+    @translated
+    def restore(self, snapshot):
+        """Puts ``snapshot``'s state into this env, which then steps exactly as the env it
+        was taken of would have; returns (observations, infos) of the agents live in it,
+        as ``reset`` does. A snapshot of another scenario, options or protocol version,
+        or a damaged one, raises ``SnapshotError`` and leaves the env as it was."""
+        observations, infos = self._env.restore(bytes(snapshot))
+        self.agents = [a for a in self.possible_agents if a in observations]
+        if self._recording is not None:
+            start, _ = self._env.take_world()
+            if start is not None:
+                self._recording.begin_episode(start, infos=infos)
+        return {a: _convert.observation(o) for a, o in observations.items()}, infos
+
+    @translated
     def render(self):
         if self.render_mode is None:
             gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'ansi'")

@@ -71,6 +71,21 @@ class GymEnv(gymnasium.Env):
     def render(self):
         return self._parallel.render()
 
+    def snapshot(self) -> bytes:
+        """``ParallelEnv.snapshot``: the env's whole state as bytes."""
+        return self._parallel.snapshot()
+
+    def restore(self, snapshot):
+        """``ParallelEnv.restore``: (observation, info) of this agent, as ``reset`` gives
+        them; an agent that had finished when the snapshot was taken raises
+        ``InvalidActionError`` (reset instead)."""
+        observations, infos = self._parallel.restore(snapshot)
+        if self.agent not in observations:
+            from ._errors import InvalidActionError
+
+            raise InvalidActionError("AgentNotLive", f"agent {self.agent!r} had finished when the snapshot was taken")
+        return observations[self.agent], infos[self.agent]
+
     def start_recording(self, path=None, **where):
         """``ParallelEnv.start_recording``: every vehicle, and this agent's actions,
         rewards and infos."""

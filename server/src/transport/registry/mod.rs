@@ -171,6 +171,13 @@ impl Registry {
             RequestBody::Record { env, on } => self.with_env(client, env, |slot| {
                 slot.env.set_recording(on).map(|start| ReplyBody::Recording(start.map(Box::new)))
             }),
+            RequestBody::Snapshot { env } => {
+                self.with_env(client, env, |slot| slot.env.snapshot().map(ReplyBody::Snapshot))
+            }
+            RequestBody::Restore { env, seq, snapshot } => self.sequenced(client, env, seq, |env| {
+                let agents = env.restore(&snapshot)?;
+                Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.world_start().map(Box::new) }))
+            }),
         }
     }
 

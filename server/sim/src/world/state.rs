@@ -1,0 +1,259 @@
+//! A world's changing state as plain data (`WorldState`), for env snapshots: every
+//! vehicle (its driver's memory included), the clock, the scene drivers last read, the
+//! collisions so far, the sorted order and the RNG's position. What a scenario fixes
+//! (road, bodies, timing, IDM constants, each vehicle's prepared physics step) is not in
+//! it: a state is restored onto a world freshly built from the same episode, and checked
+//! against it. Scratch (the decisions buffer, the fleet's blocks) is not state: it is
+//! rewritten before it is read in every tick.
+
+use std::fmt;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use super::{Collision, Driver, Vehicle, World};
+use crate::road::LaneId;
+use crate::scene::{Car, DriverKind};
+
+/// Everything of a `World` that changes as it runs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WorldState {
+    vehicles: Vec<Vehicle>,
+    time: f64,
+    ticks: u64,
+    scene_tick: Option<u64>,
+    scene_time: f64,
+    scene_cars: Vec<Car>,
+    collisions: Vec<Collision>,
+    rng: RngState,
+    order: Vec<u32>,
+}
+
+/// A ChaCha8 generator's position: its seed, stream and word.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RngState {
+    seed: [u8; 32],
+    stream: u64,
+    word: u128,
+}
+
+impl RngState {
+    /// Where `rng` is.
+    pub fn of(rng: &ChaCha8Rng) -> RngState {
+        RngState { seed: rng.get_seed(), stream: rng.get_stream(), word: rng.get_word_pos() }
+    }
+
+    /// A generator at this position: it draws what the one it was taken of would have.
+    pub fn rng(&self) -> ChaCha8Rng {
+        let mut rng = ChaCha8Rng::from_seed(self.seed);
+        rng.set_stream(self.stream);
+        rng.set_word_pos(self.word);
+        rng
+    }
+}
+
+/// A `WorldState` that does not fit the world it is restored onto.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StateError {
+    /// What does not fit, and where.
+    pub what: String,
+}
+
+impl fmt::Display for StateError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "invalid world state: {}", self.what)
+    }
+}
+
+impl std::error::Error for StateError {}
+
+fn invalid(what: impl Into<String>) -> StateError {
+    StateError { what: what.into() }
+}
+
+impl World {
+    /// The world's changing state, to restore later with `restore`.
+    pub fn state(&self) -> WorldState {
+        WorldState {
+            vehicles: self.vehicles.clone(),
+            time: self.time,
+            ticks: self.ticks,
+            scene_tick: self.scene_tick,
+            scene_time: self.scene.time,
+            scene_cars: self.scene.cars().to_vec(),
+            collisions: self.collisions.clone(),
+            rng: RngState::of(&self.rng),
+            order: self.order.clone(),
+        }
+    }
+
+    /// Puts `state` into this world, which must have been built from the same episode
+    /// (the same vehicles, by name, style, driver kind and constants, on the same road);
+    /// from then on it runs exactly as the world `state` was taken of. A state that does
+    /// not fit (it may come from outside the process) is refused, naming what does not,
+    /// and the world is left as it was.
+    pub fn restore(&mut self, state: WorldState) -> Result<(), StateError> {
+        self.check(&state)?;
+        let WorldState { vehicles, time, ticks, scene_tick, scene_time, scene_cars, collisions, rng, order } = state;
+        self.vehicles = vehicles;
+        self.time = time;
+        self.ticks = ticks;
+        self.collisions = collisions;
+        self.rng = rng.rng();
+        self.order = order;
+        self.positions.clear();
+        self.positions.extend(self.vehicles.iter().map(|vehicle| vehicle.state.s));
+        // The index is rebuilt from the cars exactly as it was built from them (each car's
+        // lane found again from its position, which gives the lane it has).
+        self.scene.refresh(scene_time, scene_cars.into_iter());
+        self.scene_tick = scene_tick;
+        Ok(())
+    }
+
+    fn check(&self, state: &WorldState) -> Result<(), StateError> {
+        let n = self.vehicles.len();
+        if state.vehicles.len() != n || state.scene_cars.len() != n || state.order.len() != n {
+            return Err(invalid(format!(
+                "{} vehicles, {} scene cars and {} sorted places, where this world has {n} vehicles",
+                state.vehicles.len(),
+                state.scene_cars.len(),
+                state.order.len()
+            )));
+        }
+        let lanes = self.road().lane_count();
+        let lane_ok = |lane: LaneId| (lane.0 as usize) < lanes;
+        for (index, (ours, theirs)) in self.vehicles.iter().zip(&state.vehicles).enumerate() {
+            let at = || format!("vehicle {index} ('{}')", ours.name);
+            if theirs.name != ours.name || theirs.style != ours.style || theirs.driver_params != ours.driver_params {
+                return Err(invalid(format!(
+                    "{}: the state has '{}' ({:?}) with other constants",
+                    at(),
+                    theirs.name,
+                    theirs.style
+                )));
+            }
+            let same_driver = match (&ours.driver, &theirs.driver) {
+                (Driver::Agent(_), Driver::Agent(_)) | (Driver::Idm, Driver::Idm) => true,
+                (Driver::Gt(a), Driver::Gt(b)) => a.game == b.game && a.role == b.role && a.params == b.params,
+                _ => false,
+            };
+            if !same_driver {
+                return Err(invalid(format!("{}: another driver, or the same with other constants", at())));
+            }
+            let counterfactual = match &theirs.driver {
+                Driver::Gt(gt) => gt.counterfactual_target,
+                _ => None,
+            };
+            let lanes_used = [Some(theirs.target_lane), Some(theirs.lane_entry.lane), counterfactual];
+            if !lanes_used.into_iter().flatten().all(lane_ok) {
+                return Err(invalid(format!("{}: a lane the road (lanes 0..{lanes}) does not have", at())));
+            }
+            let s = &theirs.state;
+            let numbers = [s.vx, s.vy, s.yaw_rate, s.heading, s.s, s.d, s.steer, s.steer_rate, theirs.target_speed];
+            if !numbers.iter().all(|x| x.is_finite()) {
+                return Err(invalid(format!("{}: a state or target speed that is not finite", at())));
+            }
+            let car = &state.scene_cars[index];
+            let kind_matches = matches!(
+                (car.driver, &ours.driver),
+                (DriverKind::Agent, Driver::Agent(_))
+                    | (DriverKind::Idm, Driver::Idm)
+                    | (DriverKind::Gt(_), Driver::Gt(_))
+            );
+            if car.id.0 as usize != index || !lane_ok(car.lane) || !lane_ok(car.target_lane) || !kind_matches {
+                return Err(invalid(format!("scene car {index}: another id, driver or a lane the road does not have")));
+            }
+        }
+        let mut seen = vec![false; n];
+        for &place in &state.order {
+            match seen.get_mut(place as usize) {
+                Some(seen) if !*seen => *seen = true,
+                _ => return Err(invalid("the sorted order is not an order of the vehicles")),
+            }
+        }
+        if let Some(c) = state.collisions.iter().find(|c| c.rear.0 as usize >= n || c.front.0 as usize >= n) {
+            return Err(invalid(format!("collision of vehicles {} and {}: there are {n}", c.rear.0, c.front.0)));
+        }
+        let time = state.ticks as f64 * self.params.physics_dt;
+        if state.time.to_bits() != time.to_bits() && !(state.ticks == 0 && state.time == 0.0) {
+            return Err(invalid(format!(
+                "time {} s after {} ticks of {} s",
+                state.time, state.ticks, self.params.physics_dt
+            )));
+        }
+        if state.scene_tick.is_some_and(|tick| tick > state.ticks) {
+            return Err(invalid("a scene taken after the world's last tick"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::builtin_scenario;
+
+    fn advanced(name: &str, seconds: f64) -> World {
+        let mut world = builtin_scenario(name).unwrap().unwrap().build(7);
+        world.advance(seconds);
+        world
+    }
+
+    #[test]
+    fn a_restored_world_runs_on_as_the_original() {
+        for name in ["highway-gt", "merge-random"] {
+            let mut original = advanced(name, 3.0);
+            let mut restored = builtin_scenario(name).unwrap().unwrap().build(99);
+            restored.restore(original.state()).unwrap();
+            assert!(restored.state() == original.state(), "{name}");
+            original.advance(4.0);
+            restored.advance(4.0);
+            assert!(restored.state() == original.state(), "{name}: the worlds parted");
+        }
+    }
+
+    #[test]
+    fn a_state_that_does_not_fit_is_refused_and_the_world_left_as_it_was() {
+        let world = advanced("merge-random", 1.0);
+        let good = world.state();
+        type Spoil = Box<dyn Fn(&mut WorldState)>;
+        let cases: Vec<(&str, Spoil)> = vec![
+            ("vehicles", Box::new(|s| drop(s.vehicles.pop()))),
+            ("vehicle 0", Box::new(|s| s.vehicles[0].name.push('x'))),
+            (
+                "another driver",
+                Box::new(|s| {
+                    let idm = matches!(s.vehicles[0].driver, Driver::Idm);
+                    s.vehicles[0].driver =
+                        if idm { Driver::Agent(super::super::AgentCommand::Track) } else { Driver::Idm };
+                }),
+            ),
+            ("a lane the road", Box::new(|s| s.vehicles[1].target_lane = LaneId(9))),
+            ("not finite", Box::new(|s| s.vehicles[1].state.vx = f64::NAN)),
+            ("scene car 1", Box::new(|s| s.scene_cars[1].lane = LaneId(40))),
+            ("sorted order", Box::new(|s| s.order[0] = s.order[1])),
+            (
+                "collision of vehicles",
+                Box::new(|s| {
+                    s.collisions.push(Collision {
+                        rear: crate::VehicleId(0),
+                        front: crate::VehicleId(77),
+                        at_fault: crate::AtFault::Rear,
+                    })
+                }),
+            ),
+            ("time", Box::new(|s| s.time += 1.0)),
+            ("scene taken after", Box::new(|s| s.scene_tick = Some(s.ticks + 1))),
+        ];
+        for (needle, spoil) in cases {
+            let mut bad = good.clone();
+            spoil(&mut bad);
+            let mut target = advanced("merge-random", 2.0);
+            let before = target.state();
+            let error = target.restore(bad).unwrap_err().to_string();
+            assert!(error.contains(needle), "'{needle}' not in: {error}");
+            assert!(target.state() == before, "{needle}: a refused state changed the world");
+        }
+    }
+}

@@ -1,0 +1,267 @@
+//! Env snapshots: the whole state of an env as bytes (`Env::snapshot`) and back
+//! (`Env::restore`), so an episode can branch: restored into this env or a fresh one of
+//! the same scenario and options, on this server or another of the same protocol
+//! version, it continues bit for bit as the original would have.
+//!
+//! The bytes: 8 bytes `MAGIC`, the protocol version (u16, little-endian), the `Body`
+//! in the protocol's codec, and a SHA3-256 of everything before it (so a truncated or
+//! corrupted snapshot is told as such, not taken for another state). The body names the scenario and a SHA3-256 of the
+//! resolved scenario (`Env::identity`: the text, inline or not, with its overrides
+//! applied), and the options that change results; the episode is rebuilt from the
+//! scenario and the reset's own inputs (the world's seed, the reset's overrides), and
+//! only what changes as it runs comes from the bytes, checked against that rebuilt
+//! world (`World::restore`). A snapshot from a client is untrusted input: every decode or
+//! fit error is an `InvalidSnapshot` reply naming what did not fit, and the env is left
+//! as it was. Solver scratch (the MPC's per-thread clarabel workspace, the world's
+//! decision and fleet buffers, the step's scratch) is not in it: each is rewritten
+//! before it is read, so it does not change results.
+
+use arena_protocol::{AgentStart, ErrorCode, ErrorReply, OptionValue, PROTOCOL_VERSION};
+use arena_sim::{GtDriver, RngState, VehicleId, WorldState};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use sha3::Digest;
+
+use super::{AgentSlot, Env, episode, error, info, observation, overrides, recording};
+use arena_protocol::bounds::MAX_SNAPSHOT_BYTES;
+
+/// The first bytes of every snapshot.
+pub const MAGIC: &[u8; 8] = b"ARENASNP";
+
+/// Bytes before the body: the magic and the protocol version.
+const HEADER: usize = MAGIC.len() + 2;
+
+/// Bytes of the checksum after the body.
+const CHECKSUM: usize = 32;
+
+/// What a snapshot holds after its header.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Body {
+    /// The scenario's name.
+    scenario: String,
+    /// SHA3-256 of the resolved scenario (`Env::identity`).
+    hash: [u8; 32],
+    /// The env options that change results, as `Env::options_text` writes them.
+    options: String,
+    /// The current episode's world seed and the reset's overrides: the episode's
+    /// scenario (its `[vary]` draws) and its built world are made again from them.
+    world_seed: u64,
+    overrides: Vec<(String, OptionValue)>,
+    /// The env's seed stream, for resets without a seed.
+    seeds: RngState,
+    cycles: u32,
+    agents: Vec<AgentState>,
+    world: WorldState,
+}
+
+/// One agent's part of a snapshot.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct AgentState {
+    name: String,
+    vehicle: u32,
+    live: bool,
+    expert: Option<GtDriver>,
+    stats: Option<episode::EpisodeStats>,
+    aim: f64,
+    ladder: f64,
+}
+
+fn refused(message: impl Into<String>) -> ErrorReply {
+    error(ErrorCode::InvalidSnapshot, message)
+}
+
+/// The first 8 hex digits of a hash, as messages show it.
+fn short(hash: &[u8; 32]) -> String {
+    hash[..4].iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// SHA3-256 of the resolved scenario: its `Debug` text, which writes every field (floats
+/// as the shortest text that reads back to the same bits) in declaration order, its
+/// source (file name, text, overrides) included.
+pub fn identity(scenario: &arena_sim::Scenario) -> [u8; 32] {
+    sha3::Sha3_256::digest(format!("{scenario:?}").as_bytes()).into()
+}
+
+impl Env {
+    /// The env options that change what a step returns, as a snapshot names them.
+    fn options_text(&self) -> String {
+        let actions: Vec<String> = self.agents.iter().map(|a| format!("{}={}", a.name, a.action)).collect();
+        let expert = self.expert.map_or("none".to_string(), |g| format!("{g:?}").to_lowercase());
+        let policy = self.policy.map_or("none".to_string(), |p| p.to_string());
+        format!(
+            "observation {}, max_cycles {}, actions [{}], expert {expert}, policy {policy}, diagnostics {}",
+            self.observation,
+            self.max_cycles,
+            actions.join(", "),
+            self.diagnostics
+        )
+    }
+
+    /// The env's whole state (docs/protocol.md, "Snapshots"); refused before a reset.
+    pub fn snapshot(&self) -> Result<Vec<u8>, ErrorReply> {
+        let world =
+            self.world.as_ref().ok_or_else(|| error(ErrorCode::NotReset, "snapshot before reset: call reset first"))?;
+        let agents = self
+            .agents
+            .iter()
+            .map(|a| AgentState {
+                name: a.name.clone(),
+                vehicle: a.vehicle.0,
+                live: a.live,
+                expert: a.expert.as_deref().cloned(),
+                stats: a.stats.clone(),
+                aim: a.aim,
+                ladder: a.ladder,
+            })
+            .collect();
+        let body = Body {
+            scenario: self.scenario.name.clone(),
+            hash: self.identity,
+            options: self.options_text(),
+            world_seed: self.reset_inputs.0,
+            overrides: self.reset_inputs.1.clone(),
+            seeds: RngState::of(&self.seeds),
+            cycles: self.cycles,
+            agents,
+            world: world.state(),
+        };
+        let mut bytes = Vec::with_capacity(4096);
+        bytes.extend_from_slice(MAGIC);
+        bytes.extend_from_slice(&PROTOCOL_VERSION.to_le_bytes());
+        bytes.extend_from_slice(&arena_protocol::encode(&body));
+        let checksum = sha3::Sha3_256::digest(&bytes);
+        bytes.extend_from_slice(&checksum);
+        if bytes.len() > MAX_SNAPSHOT_BYTES {
+            return Err(error(
+                ErrorCode::PayloadTooLarge,
+                format!(
+                    "this env's snapshot has {} bytes, more than the {MAX_SNAPSHOT_BYTES} a restore may carry",
+                    bytes.len()
+                ),
+            ));
+        }
+        Ok(bytes)
+    }
+
+    /// Puts a snapshot's state into this env, which then continues exactly as the env it
+    /// was taken of would have; returns the agents live in it with their observations and
+    /// infos as a reset does (the infos' episode figures are zero, as on a reset, and
+    /// computing them changes nothing of the state). A snapshot that is not one, is of
+    /// another protocol version, scenario or options, or does not fit is refused with
+    /// `InvalidSnapshot` naming what, and the env stays as it was.
+    pub fn restore(&mut self, bytes: &[u8]) -> Result<Vec<AgentStart>, ErrorReply> {
+        let body = self.read(bytes)?;
+        let Body { world_seed, overrides: reset_overrides, seeds, cycles, agents: states, world: state, .. } = body;
+        let mut draws = ChaCha8Rng::seed_from_u64(world_seed);
+        let mut episode = self
+            .scenario
+            .episode(&mut draws, &overrides::converted(&reset_overrides))
+            .map_err(|e| refused(format!("the snapshot's episode does not build: {e}")))?;
+        if let Some(policy) = self.policy {
+            super::drive_learners(&mut episode, policy);
+        }
+        let mut world = episode.build(world_seed);
+        world.restore(state).map_err(|e| refused(format!("snapshot of scenario '{}': {e}", self.scenario.name)))?;
+        if states.len() != self.agents.len() {
+            return Err(refused(format!("the snapshot has {} agents, this env {}", states.len(), self.agents.len())));
+        }
+        let mut agents: Vec<AgentSlot> = self.agents.clone();
+        for (agent, state) in agents.iter_mut().zip(states) {
+            let vehicle = world.find(&agent.name);
+            if state.name != agent.name || vehicle != Some(VehicleId(state.vehicle)) {
+                return Err(refused(format!(
+                    "the snapshot's agent '{}' (vehicle {}) is not this env's '{}'",
+                    state.name, state.vehicle, agent.name
+                )));
+            }
+            if state.expert.is_some() != self.expert.is_some() {
+                return Err(refused(format!(
+                    "agent '{}': an expert's memory where the env has none, or none",
+                    agent.name
+                )));
+            }
+            agent.vehicle = VehicleId(state.vehicle);
+            agent.live = state.live;
+            agent.expert = state.expert.map(Box::new);
+            agent.stats = state.stats;
+            agent.aim = state.aim;
+            agent.ladder = state.ladder;
+        }
+        if self.recording {
+            recording::check_fits(world.vehicles().len(), super::frames_per_step(&episode, &world))?;
+            self.recorder.restart(&world);
+        }
+        self.seeds = seeds.rng();
+        self.episode = episode;
+        self.cycles = cycles;
+        self.agents = agents;
+        self.reset_inputs = (world_seed, reset_overrides);
+        let live: Vec<usize> = (0..self.agents.len()).filter(|&i| self.agents[i].live).collect();
+        let starts = live
+            .into_iter()
+            .map(|i| {
+                let (vehicle, action) = (self.agents[i].vehicle, self.agents[i].action);
+                let observation = observation::observe(self.observation, world.scene(), vehicle, action);
+                // The expert's memory and ladder move when its info is computed: kept as
+                // they were, so the restored env steps as the original.
+                let kept = (self.agents[i].expert.clone(), self.agents[i].ladder);
+                let info = self.info(&mut world, i, &info::Outcome::start());
+                (self.agents[i].expert, self.agents[i].ladder) = kept;
+                AgentStart { agent: self.agents[i].name.clone(), observation, info }
+            })
+            .collect();
+        self.world = Some(world);
+        Ok(starts)
+    }
+
+    /// The body of `bytes`, checked against this env's protocol version, scenario and
+    /// options.
+    fn read(&self, bytes: &[u8]) -> Result<Body, ErrorReply> {
+        if bytes.len() < HEADER || &bytes[..MAGIC.len()] != MAGIC {
+            return Err(refused(format!(
+                "{} bytes that are not an env snapshot (a snapshot begins with {:?}): pass the bytes \
+                 `snapshot` returned, unchanged",
+                bytes.len(),
+                String::from_utf8_lossy(MAGIC)
+            )));
+        }
+        let version = u16::from_le_bytes([bytes[MAGIC.len()], bytes[MAGIC.len() + 1]]);
+        if version != PROTOCOL_VERSION {
+            return Err(refused(format!(
+                "a snapshot of protocol version {version}, this server speaks version {PROTOCOL_VERSION}: restore it \
+                 on a server of version {version}"
+            )));
+        }
+        let Some(split) = bytes.len().checked_sub(CHECKSUM).filter(|&split| split > HEADER) else {
+            return Err(refused(format!("a snapshot of {} bytes is truncated: it cannot hold a state", bytes.len())));
+        };
+        if sha3::Sha3_256::digest(&bytes[..split])[..] != bytes[split..] {
+            return Err(refused(format!(
+                "the snapshot ({} bytes) is truncated or corrupted: its checksum does not match its contents; pass                  the bytes `snapshot` returned, unchanged",
+                bytes.len()
+            )));
+        }
+        let body: Body = arena_protocol::decode(&bytes[HEADER..split])
+            .map_err(|e| refused(format!("the snapshot's contents do not decode: {e}")))?;
+        let name = &self.scenario.name;
+        if body.scenario != *name || body.hash != self.identity {
+            return Err(refused(format!(
+                "a snapshot of scenario '{}' (resolved content {}) cannot be restored into an env of scenario \
+                 '{name}' (resolved content {}): create the env from the same scenario, text and overrides",
+                body.scenario,
+                short(&body.hash),
+                short(&self.identity)
+            )));
+        }
+        let options = self.options_text();
+        if body.options != options {
+            return Err(refused(format!(
+                "a snapshot of an env with options ({}) cannot be restored into one with ({options}): create the \
+                 env with the same options",
+                body.options
+            )));
+        }
+        Ok(body)
+    }
+}

@@ -48,6 +48,7 @@ from .batch import BatchEnv
 from .datasets import RECORD_SEED, record, training_seeds
 from .evaluation import Evaluation, evaluate
 from .parallel import ParallelEnv
+from .play import play
 from .single import GymEnv
 from .vector import VectorEnv
 
@@ -81,6 +82,7 @@ __all__ = [
     "gym_env",
     "launch_server",
     "parallel_env",
+    "play",
     "record",
     "serving",
     "training_seeds",

@@ -308,18 +308,9 @@ def _run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs
         for i in range(episodes):
             episode_seed = seed + i
             observations, _ = env.reset(seed=episode_seed)
-            spaces = {agent: env.action_space(agent) for agent in env.possible_agents}
-            for k, agent in enumerate(env.possible_agents):
-                spaces[agent].seed(episode_seed + k)
+            spaces = _seeded_spaces(env, episode_seed)
             while env.agents:
-                if built_in:
-                    actions = {}
-                elif policy == "idle":
-                    actions = {a: _idle(spaces[a]) for a in env.agents}
-                elif policy == "random":
-                    actions = {a: spaces[a].sample() for a in env.agents}
-                else:
-                    actions = {a: _act(policy, observations[a]) for a in env.agents}
+                actions = _actions(policy, built_in, spaces, env.agents, observations)
                 observations, _, terminations, truncations, infos = env.step(actions)
                 for agent, info in infos.items():
                     if terminations[agent] or truncations[agent]:
@@ -329,6 +320,26 @@ def _run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs
     finally:
         env.close()
     return rows
+
+
+def _seeded_spaces(env, seed) -> dict:
+    """Each agent's action space, seeded from the episode's seed (``random`` draws the
+    same actions for the same seed)."""
+    spaces = {agent: env.action_space(agent) for agent in env.possible_agents}
+    for k, agent in enumerate(env.possible_agents):
+        spaces[agent].seed(seed + k)
+    return spaces
+
+
+def _actions(policy, built_in, spaces, agents, observations) -> dict:
+    """This step's actions of the live ``agents``: none when the server drives them."""
+    if built_in:
+        return {}
+    if policy == "idle":
+        return {a: _idle(spaces[a]) for a in agents}
+    if policy == "random":
+        return {a: spaces[a].sample() for a in agents}
+    return {a: _act(policy, observations[a]) for a in agents}
 
 
 def _idle(space):

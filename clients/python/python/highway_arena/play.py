@@ -13,7 +13,7 @@ a Rerun recording (``record=PATH``), a desktop viewer (``spawn=True``), a web vi
 
 from __future__ import annotations
 
-from .evaluation import CLIENT_POLICIES, _act, _idle
+from .evaluation import CLIENT_POLICIES, _actions, _seeded_spaces
 from .parallel import ParallelEnv
 
 
@@ -47,19 +47,10 @@ def play(
             env.start_recording(record, spawn=spawn, serve=serve)
         for i in range(episodes):
             observations, _ = env.reset(seed=int(seed) + i)
-            spaces = {agent: env.action_space(agent) for agent in env.possible_agents}
-            for k, agent in enumerate(env.possible_agents):
-                spaces[agent].seed(int(seed) + i + k)
+            spaces = _seeded_spaces(env, int(seed) + i)
             total = {agent: 0.0 for agent in env.possible_agents}
             while env.agents:
-                if built_in:
-                    actions = {}
-                elif policy == "idle":
-                    actions = {a: _idle(spaces[a]) for a in env.agents}
-                elif policy == "random":
-                    actions = {a: spaces[a].sample() for a in env.agents}
-                else:
-                    actions = {a: _act(policy, observations[a]) for a in env.agents}
+                actions = _actions(policy, built_in, spaces, env.agents, observations)
                 observations, rewards, _, _, _ = env.step(actions)
                 for agent, reward in rewards.items():
                     total[agent] += float(reward)

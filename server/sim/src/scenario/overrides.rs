@@ -90,7 +90,9 @@ pub(super) fn apply_opponents(table: &mut toml::Table, key: &str, value: toml::V
         }
     }
     if found == 0 {
-        return Err(bad("the scenario has no opponents (no vehicle driven by gt, no [traffic] gt)".into()));
+        return Err(bad("the scenario has no opponents (no vehicle driven by gt, no [traffic] gt); \
+             cross-play needs one that has, such as merge-random, overtake-random, merge-ac or highway-gt"
+            .into()));
     }
     Ok(())
 }

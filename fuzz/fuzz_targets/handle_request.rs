@@ -131,7 +131,8 @@ fn retarget(request: &mut Request, pick: u8, live: &mut [Live]) -> Option<usize>
         | RequestBody::State { env }
         | RequestBody::Specs { env }
         | RequestBody::Record { env, .. }
-        | RequestBody::Snapshot { env } => {
+        | RequestBody::Snapshot { env }
+        | RequestBody::Statistics { env } => {
             point(env, None);
             None
         }

@@ -113,8 +113,10 @@ pub fn check(request: &Request) -> Result<(), BoundError> {
         RequestBody::Restore { snapshot, .. } => {
             at_most(|| "the snapshot".to_string(), snapshot.len(), MAX_SNAPSHOT_BYTES, "bytes")
         }
+        RequestBody::Render { follow: Some(vehicle), .. } => name("the render's follow name", vehicle),
         RequestBody::ServerInfo
-        | RequestBody::Render { .. }
+        | RequestBody::Render { follow: None, .. }
+        | RequestBody::Statistics { .. }
         | RequestBody::State { .. }
         | RequestBody::Specs { .. }
         | RequestBody::Close { .. }

@@ -71,5 +71,5 @@ pub use world::{
 /// schema with no strings, `info::SCHEMA`; 6: `collision_with`, `at_fault` and the jerk
 /// figures in infos; 7: recordings, `CreateOptions::record`, `RequestBody::Record`, the
 /// world in reset and step replies, `world`; 8: `CreateOptions::explain`,
-/// `StepReply::explain`).
-pub const PROTOCOL_VERSION: u16 = 8;
+/// `StepReply::explain`; 9: `Render::follow`, `RequestBody::Statistics`).
+pub const PROTOCOL_VERSION: u16 = 9;

@@ -115,6 +115,10 @@ pub enum RequestBody {
         env: EnvId,
         /// Which picture.
         mode: RenderMode,
+        /// The vehicle the picture follows, by its scenario name (an agent's name for a
+        /// learner) (version 9); `None` follows the first live learner, else the first
+        /// vehicle.
+        follow: Option<String>,
     },
     /// The global state.
     State {
@@ -158,6 +162,12 @@ pub enum RequestBody {
         seq: u64,
         /// The bytes a `Snapshot` reply carried, at most `bounds::MAX_SNAPSHOT_BYTES`.
         snapshot: Vec<u8>,
+    },
+    /// What the env's server spent on it (version 9), measured by the server's clock:
+    /// never part of an observation or an info, which stay the same bits on every run.
+    Statistics {
+        /// The env.
+        env: EnvId,
     },
 }
 
@@ -438,6 +448,25 @@ pub enum ReplyBody {
     Recording(Option<Box<WorldStart>>),
     /// To `Snapshot`: the env's state (version 7), for `Restore`.
     Snapshot(Vec<u8>),
+    /// To `Statistics` (version 9).
+    Statistics(EnvStatistics),
+}
+
+/// What a server spent on one env, by its own clock (`RequestBody::Statistics`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct EnvStatistics {
+    /// For each agent the server's built-in policy drives (`CreateOptions::policy`), in
+    /// `possible_agents` order: the wall time the server spent deciding for it in each
+    /// step it drove it (every control period of the step, the decision and the
+    /// controller), in microseconds, oldest first, since the env was created; at most
+    /// the newest `EnvStatistics::MAX_STEPS` steps.
+    pub decision_micros: Vec<(String, Vec<f32>)>,
+}
+
+impl EnvStatistics {
+    /// Most steps kept per agent: 20 000 (80 KB), chosen here, a hundred episodes of
+    /// 200 steps.
+    pub const MAX_STEPS: usize = 20_000;
 }
 
 /// One env's result within a batch.
@@ -846,8 +875,9 @@ mod tests {
                     BatchStep { env: EnvId(1), seq: 5, actions: vec![("ego".into(), Action::Meta(0))] },
                 ],
             },
-            RequestBody::Render { env, mode: RenderMode::RgbArray },
-            RequestBody::Render { env, mode: RenderMode::Ansi },
+            RequestBody::Render { env, mode: RenderMode::RgbArray, follow: None },
+            RequestBody::Render { env, mode: RenderMode::Ansi, follow: Some("ac".into()) },
+            RequestBody::Statistics { env },
             RequestBody::State { env },
             RequestBody::Specs { env },
             RequestBody::Close { env },
@@ -896,6 +926,8 @@ mod tests {
             ReplyBody::Recording(None),
             ReplyBody::Snapshot(vec![1, 2, 3]),
             ReplyBody::Snapshot(vec![]),
+            ReplyBody::Statistics(EnvStatistics::default()),
+            ReplyBody::Statistics(EnvStatistics { decision_micros: vec![("ego".into(), vec![12.5, 40.0])] }),
         ]
     }
 
@@ -957,14 +989,14 @@ mod tests {
 
     #[test]
     fn every_variant_is_covered_by_the_round_trips() {
-        // Variant indexes in the fixtures: requests 0..=11, replies 0..=11 (the byte after
+        // Variant indexes in the fixtures: requests 0..=12, replies 0..=12 (the byte after
         // the one-byte version and, for requests, the client id).
         let request_variants: std::collections::BTreeSet<u8> =
             requests().into_iter().map(|body| encode(&Request::new(ClientId(1), body))[2]).collect();
-        assert_eq!(request_variants, (0..=11).collect());
+        assert_eq!(request_variants, (0..=12).collect());
         let reply_variants: std::collections::BTreeSet<u8> =
             replies().into_iter().map(|body| encode(&Reply::new(body))[1]).collect();
-        assert_eq!(reply_variants, (0..=11).collect());
+        assert_eq!(reply_variants, (0..=12).collect());
     }
 
     #[test]

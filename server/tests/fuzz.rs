@@ -30,6 +30,12 @@ fn seeds() -> Vec<Vec<u8>> {
         request(RequestBody::Step { env: EnvId(3), seq: 2, actions: vec![("ec_0".into(), Action::Meta(3))] }),
         request(RequestBody::Record { env: EnvId(3), on: true }),
         request(RequestBody::Snapshot { env: EnvId(3) }),
+        request(RequestBody::Render {
+            env: EnvId(3),
+            mode: arena_protocol::RenderMode::RgbArray,
+            follow: Some("ac".into()),
+        }),
+        request(RequestBody::Statistics { env: EnvId(3) }),
         request(RequestBody::Restore { env: EnvId(3), seq: 3, snapshot: b"ARENASNP\x07\x00 not a state".to_vec() }),
     ]
 }
@@ -70,6 +76,7 @@ fn answered(registry: &Registry, bytes: &[u8]) {
                     | RequestBody::Specs { .. }
                     | RequestBody::Record { .. }
                     | RequestBody::Snapshot { .. }
+                    | RequestBody::Statistics { .. }
                     | RequestBody::Restore { .. },
                     ReplyBody::Error(e),
                 ) => {

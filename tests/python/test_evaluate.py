@@ -49,12 +49,33 @@ def test_results_are_written_with_plots(tmp_path):
     result = highway_arena.evaluate(["expert", "random"], "merge", episodes=2, out=tmp_path, quiet=True)
     names = sorted(os.listdir(tmp_path))
     assert names == [
-        "costs_merge.png", "differences.csv", "episodes.csv", "rates_merge.png", "results.csv", "results.json",
-        "results.md",
+        "budget.csv", "budget.md", "costs_merge.png", "differences.csv", "episodes.csv", "rates_merge.png",
+        "results.csv", "results.json", "results.md",
     ]
     assert (tmp_path / "costs_merge.png").read_bytes().startswith(b"\x89PNG")
     assert result.summary("merge", "expert")["success"]["mean"] == 1.0, "the AV merges"
     assert len((tmp_path / "episodes.csv").read_text().splitlines()) == 1 + 4
+
+
+def test_each_policy_is_timed_by_the_clock_of_the_process_that_runs_it():
+    calls = []
+
+    def keep_lane(observation):
+        calls.append(observation)
+        return 1
+
+    result = highway_arena.evaluate(
+        {"expert": "expert", "mine": keep_lane}, "merge", episodes=2, max_cycles=20, quiet=True
+    )
+    budget = {row["policy"]: row for row in result.budget}
+    assert budget["expert"]["clock"] == "server" and budget["mine"]["clock"] == "client"
+    # One sample per agent and step: merge has one learner, 20 steps an episode.
+    assert budget["expert"]["steps"] == 40 and budget["mine"]["steps"] == len(calls) == 40
+    assert 0 < budget["expert"]["p50_us"] <= budget["expert"]["p99_us"]
+    assert "| expert | server | 40 |" in result.budget_markdown
+    # Wall time stays out of the figures: a second run prints the same table.
+    again = highway_arena.evaluate({"expert": "expert", "mine": keep_lane}, "merge", episodes=2, max_cycles=20, quiet=True)
+    assert again.markdown == result.markdown
 
 
 def test_differences_are_against_the_reference_seed_by_seed():

@@ -26,3 +26,46 @@ def test_check_env_renders(render_mode):
     else:
         assert "ec_0" in frame and "@" in frame
     env.close()
+
+
+def test_record_video_writes_the_episode_as_docs_viewing_says(tmp_path):
+    """docs/viewing.md's video recipe: Gymnasium's RecordVideo over an rgb_array env
+    (moviepy writes the MP4); every step of the episode is a frame of the video."""
+    from gymnasium.wrappers import RecordVideo
+    from moviepy import VideoFileClip
+
+    env = RecordVideo(
+        highway_arena.gym_env("merge", render_mode="rgb_array", render_follow="ac", max_cycles=30),
+        str(tmp_path / "videos"),
+        episode_trigger=lambda episode: True,
+        disable_logger=True,
+    )
+    env.reset(seed=0)
+    steps = 0
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(1)
+        steps += 1
+        done = terminated or truncated
+    env.close()
+    [video] = list((tmp_path / "videos").glob("*.mp4"))
+    clip = VideoFileClip(str(video))
+    try:
+        assert clip.size == [600, 300]
+        # The reset's frame and one per step.
+        assert round(clip.duration * clip.fps) == steps + 1
+    finally:
+        clip.close()
+
+
+def test_frames_follow_the_named_vehicle():
+    env = highway_arena.gym_env("merge", render_mode="rgb_array", render_follow="ac")
+    env.reset(seed=0)
+    # The frame's centre is the followed car: AC, drawn blue, not the green learner.
+    assert env.render()[150, 300].tolist() == [60, 120, 235]
+    env.unwrapped.render_follow = None
+    assert env.render()[150, 300].tolist() == [50, 200, 80]
+    env.unwrapped.render_follow = "nobody"
+    with pytest.raises(highway_arena.ArenaError, match="no vehicle named 'nobody'"):
+        env.render()
+    env.close()

@@ -67,6 +67,37 @@ async fn a_recording_env_sends_the_world_and_stops_when_told() {
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_render_follows_the_named_vehicle_and_statistics_time_the_servers_policy() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let expert = "expert".parse().unwrap();
+    let mut driven =
+        harness.env_with(&client, "merge", CreateOptions { policy: Some(expert), ..Default::default() }).await;
+    let mut played = harness.env_with(&client, "merge", CreateOptions::default()).await;
+    for env in [&mut driven, &mut played] {
+        env.reset(Some(0), vec![]).await.unwrap();
+    }
+    for _ in 0..3 {
+        driven.step(vec![]).await.unwrap();
+        played.step(meta("ec_0", 1)).await.unwrap();
+    }
+    let statistics = driven.statistics().await.unwrap();
+    let [(agent, micros)] = &statistics.decision_micros[..] else { panic!("{statistics:?}") };
+    assert_eq!((agent.as_str(), micros.len()), ("ec_0", 3));
+    assert!(micros.iter().all(|&us| us > 0.0), "{micros:?}");
+    assert!(played.statistics().await.unwrap().decision_micros.is_empty());
+
+    let arena_client::Frame::Ansi(text) = played.render(arena_protocol::RenderMode::Ansi, Some("ac")).await.unwrap()
+    else {
+        panic!("ansi")
+    };
+    assert!(text.contains("ac: lane 0"), "{text}");
+    let refused = played.render(arena_protocol::RenderMode::RgbArray, Some("nobody")).await;
+    assert_eq!(code(refused), ErrorCode::InvalidOption);
+    played.step(meta("ec_0", 1)).await.expect("the env keeps working");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_explaining_env_sends_the_avs_decisions_and_the_same_episode() {
     let harness = common::start().await;
     let client = harness.client().await;
@@ -538,10 +569,12 @@ async fn more_kinds_of_bad_input_each_get_their_code_and_the_env_keeps_working()
     let render = encode(&Request {
         version: PROTOCOL_VERSION,
         client: client.id(),
-        body: RequestBody::Render { env: env.id(), mode: arena_protocol::RenderMode::Ansi },
+        body: RequestBody::Render { env: env.id(), mode: arena_protocol::RenderMode::Ansi, follow: None },
     });
+    // The mode is the byte before `follow`'s `None`.
     let mut unknown_mode = render.clone();
-    *unknown_mode.last_mut().unwrap() = 7;
+    let at = unknown_mode.len() - 2;
+    unknown_mode[at] = 7;
     assert_eq!(raw_code(&raw(&harness, &unknown_mode).await), ErrorCode::MalformedRequest);
 
     // 37: an action for an agent that has finished (crashes into the lane's end or merges).

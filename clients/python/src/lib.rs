@@ -9,6 +9,7 @@
 use std::sync::Mutex;
 
 use arena_client::blocking::{Client as BlockingClient, Env as BlockingEnv};
+use arena_client::eval::budget::{self, Budget, Clock};
 use arena_client::stats::Bootstrap;
 use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSource, eval};
 use arena_protocol::keys::DEFAULT_PREFIX;
@@ -376,6 +377,31 @@ fn eval_report(
         eval::episodes_csv(&episodes),
         eval::json(&summaries, &episodes),
     ))
+}
+
+/// A policy's compute budget as Python gets it: (scenario, policy, clock, agent-steps,
+/// p50 µs, p99 µs).
+type BudgetRow = (String, String, String, usize, f64, f64);
+
+/// The compute budget of evaluated policies (`arena_client::eval::budget`): `items` are
+/// (scenario, policy, clock 'server' or 'client', decision times in µs per agent and
+/// step); returns (Markdown, CSV, one row per item).
+#[pyfunction]
+fn budget_report(items: Vec<(String, String, String, Vec<f32>)>) -> PyResult<(String, String, Vec<BudgetRow>)> {
+    let mut budgets = Vec::with_capacity(items.len());
+    for (scenario, policy, clock, micros) in items {
+        let clock = match clock.as_str() {
+            "server" => Clock::Server,
+            "client" => Clock::Client,
+            other => return Err(PyValueError::new_err(format!("clock must be 'server' or 'client', not {other:?}"))),
+        };
+        budgets.push(Budget::new(&scenario, &policy, clock, &micros));
+    }
+    let rows = budgets
+        .iter()
+        .map(|b| (b.scenario.clone(), b.policy.clone(), b.clock.name().to_string(), b.steps, b.p50_us, b.p99_us))
+        .collect();
+    Ok((budget::markdown(&budgets), budget::csv(&budgets), rows))
 }
 
 /// The opponents of a cross-play run, in column order: (name, [(override key, value)])
@@ -751,8 +777,10 @@ impl Env {
         PyList::new(py, dicts)
     }
 
-    /// ("rgb", height, width, bytes) or ("ansi", text).
-    fn render<'py>(&self, py: Python<'py>, mode: &str) -> PyResult<Bound<'py, PyTuple>> {
+    /// ("rgb", height, width, bytes) or ("ansi", text), following the vehicle named
+    /// `follow` (else the first learner).
+    #[pyo3(signature = (mode, follow=None))]
+    fn render<'py>(&self, py: Python<'py>, mode: &str, follow: Option<String>) -> PyResult<Bound<'py, PyTuple>> {
         let mode = match mode {
             "rgb_array" => RenderMode::RgbArray,
             "ansi" => RenderMode::Ansi,
@@ -760,10 +788,21 @@ impl Env {
                 return Err(PyValueError::new_err(format!("render mode must be 'rgb_array' or 'ansi', not {other:?}")));
             }
         };
-        match self.with(py, move |env| env.render(mode))? {
+        match self.with(py, move |env| env.render(mode, follow.as_deref()))? {
             Frame::Rgb { height, width, pixels } => ("rgb", height, width, PyBytes::new(py, &pixels)).into_pyobject(py),
             Frame::Ansi(text) => ("ansi", text).into_pyobject(py),
         }
+    }
+
+    /// The server's wall time deciding for each learner its built-in policy drives, per
+    /// step, in microseconds (docs/protocol.md, "Statistics"): {agent: [float, ...]}.
+    fn statistics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let statistics = self.with(py, |env| env.statistics())?;
+        let dict = PyDict::new(py);
+        for (agent, micros) in statistics.decision_micros {
+            dict.set_item(agent, micros)?;
+        }
+        Ok(dict)
     }
 
     /// The env's whole state as bytes (docs/protocol.md, "Snapshots").
@@ -860,6 +899,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("GAMES", Game::ALL.map(Game::name).to_vec())?;
     m.add_class::<Client>()?;
     m.add_class::<Env>()?;
+    m.add_function(wrap_pyfunction!(budget_report, m)?)?;
     m.add_function(wrap_pyfunction!(eval_report, m)?)?;
     m.add_function(wrap_pyfunction!(league_add, m)?)?;
     m.add_function(wrap_pyfunction!(crossplay_opponents, m)?)?;

@@ -8,8 +8,8 @@ use std::time::Duration;
 use arena_protocol::session::ConnectionFlags;
 
 use crate::{
-    Action, ClientError, CreateOptions, EnvSpecs, Frame, Observation, OptionValue, RenderMode, ResetReply, Result,
-    ScenarioSource, ServerInfo, StepReply,
+    Action, ClientError, CreateOptions, EnvSpecs, EnvStatistics, Frame, Observation, OptionValue, RenderMode,
+    ResetReply, Result, ScenarioSource, ServerInfo, StepReply,
 };
 
 /// A blocking client. Cheap to clone.
@@ -122,8 +122,13 @@ impl Env {
     }
 
     /// See `crate::RemoteEnv::render`.
-    pub fn render(&self, mode: RenderMode) -> Result<Frame> {
-        self.client.runtime.block_on(self.env.render(mode))
+    pub fn render(&self, mode: RenderMode, follow: Option<&str>) -> Result<Frame> {
+        self.client.runtime.block_on(self.env.render(mode, follow))
+    }
+
+    /// See `crate::RemoteEnv::statistics`.
+    pub fn statistics(&self) -> Result<EnvStatistics> {
+        self.client.runtime.block_on(self.env.statistics())
     }
 
     /// See `crate::RemoteEnv::state`.

@@ -12,6 +12,7 @@ use serde::Serialize;
 
 use crate::stats::{self, Bootstrap, Interval};
 
+pub mod budget;
 pub mod crossplay;
 pub mod league;
 mod tables;

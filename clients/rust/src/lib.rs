@@ -33,9 +33,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 pub use arena_protocol::{
-    Action, AgentStart, AgentStep, BatchItem, BatchStep, CreateOptions, EndReason, EnvId, EnvSpecs, ErrorCode,
-    ErrorReply, Frame, Info, InfoValue, MetaAction, Observation, OptionValue, RenderMode, ResetReply, ScenarioSource,
-    ServerInfo, StepReply, WorldFrame, WorldStart,
+    Action, AgentStart, AgentStep, BatchItem, BatchStep, CreateOptions, EndReason, EnvId, EnvSpecs, EnvStatistics,
+    ErrorCode, ErrorReply, Frame, Info, InfoValue, MetaAction, Observation, OptionValue, RenderMode, ResetReply,
+    ScenarioSource, ServerInfo, StepReply, WorldFrame, WorldStart,
 };
 use arena_protocol::{
     ClientId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetOptions, decode, encode, keys,
@@ -471,6 +471,7 @@ fn request_name(body: &RequestBody) -> &'static str {
         RequestBody::Record { .. } => "record",
         RequestBody::Snapshot { .. } => "snapshot",
         RequestBody::Restore { .. } => "restore",
+        RequestBody::Statistics { .. } => "statistics",
     }
 }
 
@@ -532,9 +533,11 @@ impl RemoteEnv {
         }
     }
 
-    /// A frame drawn by the server.
-    pub async fn render(&self, mode: RenderMode) -> Result<Frame> {
-        match self.client.call(&self.server, RequestBody::Render { env: self.id, mode }, true).await? {
+    /// A frame drawn by the server, following the vehicle named `follow` (any vehicle of
+    /// the scenario), else the first learner.
+    pub async fn render(&self, mode: RenderMode, follow: Option<&str>) -> Result<Frame> {
+        let body = RequestBody::Render { env: self.id, mode, follow: follow.map(str::to_string) };
+        match self.client.call(&self.server, body, true).await? {
             ReplyBody::Render(frame) => Ok(frame),
             other => Err(unexpected("Render", &other)),
         }
@@ -577,6 +580,16 @@ impl RemoteEnv {
         match self.client.call(&self.server, body, true).await? {
             ReplyBody::Reset(reply) => Ok(reply),
             other => Err(unexpected("Reset", &other)),
+        }
+    }
+
+    /// What the server spent on this env by its own clock: for each learner its built-in
+    /// policy drives, the wall time of each step's decisions (docs/protocol.md,
+    /// "Statistics").
+    pub async fn statistics(&self) -> Result<EnvStatistics> {
+        match self.client.call(&self.server, RequestBody::Statistics { env: self.id }, true).await? {
+            ReplyBody::Statistics(statistics) => Ok(statistics),
+            other => Err(unexpected("Statistics", &other)),
         }
     }
 

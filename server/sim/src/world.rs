@@ -7,6 +7,8 @@
 //! depend on roles, never on the order of vehicles in a file. Neighbour queries and
 //! collision checks use sorted orders, so a tick costs O(n) for n vehicles.
 
+use std::time::{Duration, Instant};
+
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -208,6 +210,23 @@ pub struct World {
     explain: bool,
     /// The decisions explained since `take_explanations` last emptied it.
     explanations: Vec<gt::Explanation>,
+    /// Wall time spent deciding, per vehicle (`clock_decisions`).
+    clock: DecisionClock,
+}
+
+/// Wall time each vehicle's driver spent deciding since it was last taken: a measurement
+/// for a compute budget (`arena eval`), never read by the simulation, so two worlds in
+/// the same state are equal whatever their clocks read.
+#[derive(Debug, Clone, Default)]
+struct DecisionClock {
+    on: bool,
+    spent: Vec<Duration>,
+}
+
+impl PartialEq for DecisionClock {
+    fn eq(&self, _: &DecisionClock) -> bool {
+        true
+    }
 }
 
 impl World {
@@ -232,6 +251,7 @@ impl World {
             moving: Vec::new(),
             explain: false,
             explanations: Vec::new(),
+            clock: DecisionClock::default(),
         }
     }
 
@@ -476,10 +496,10 @@ impl World {
         decisions.clear();
         let leaders = self.in_parallel(|world, index| !world.is_follower(index));
         for index in 0..self.vehicles.len() {
-            let decision = match leaders.iter().find(|(i, _)| *i == index) {
-                Some((_, decided)) => decided.clone(),
+            let decision = match leaders.iter().find(|(i, ..)| *i == index) {
+                Some((_, decided, spent)) => self.clocked(index, decided.clone(), *spent),
                 None if self.is_follower(index) => Decision::Accel(0.0),
-                None => self.decide_one(index),
+                None => self.decide_clocked(index),
             };
             if let Some((accel, change)) = self.announced(index, &decision) {
                 self.scene.record_decision(VehicleId(index as u32), accel, change);
@@ -488,10 +508,10 @@ impl World {
         }
         let followers = self.in_parallel(|world, index| world.is_follower(index));
         for (index, decision) in decisions.iter_mut().enumerate() {
-            if let Some((_, decided)) = followers.iter().find(|(i, _)| *i == index) {
-                *decision = decided.clone();
+            if let Some((_, decided, spent)) = followers.iter().find(|(i, ..)| *i == index) {
+                *decision = self.clocked(index, decided.clone(), *spent);
             } else if self.is_follower(index) {
-                *decision = self.decide_one(index);
+                *decision = self.decide_clocked(index);
             }
         }
         if self.explain {
@@ -501,6 +521,44 @@ impl World {
             self.apply(VehicleId(index as u32), decision);
         }
         self.decisions = decisions;
+    }
+
+    /// `decide_one`, its wall time added to the vehicle's clock when the clock is on.
+    fn decide_clocked(&mut self, index: usize) -> Decision {
+        let (decision, spent) = self.decide_timed(index);
+        self.clocked(index, decision, spent)
+    }
+
+    /// `decide_one` and its wall time (zero, unmeasured, when the clock is off).
+    fn decide_timed(&self, index: usize) -> (Decision, Duration) {
+        if !self.clock.on {
+            return (self.decide_one(index), Duration::ZERO);
+        }
+        let start = Instant::now();
+        let decision = self.decide_one(index);
+        (decision, start.elapsed())
+    }
+
+    /// Adds `spent` to vehicle `index`'s clock; returns `decision`.
+    fn clocked(&mut self, index: usize, decision: Decision, spent: Duration) -> Decision {
+        if self.clock.on {
+            self.clock.spent.resize(self.vehicles.len(), Duration::ZERO);
+            self.clock.spent[index] += spent;
+        }
+        decision
+    }
+
+    /// Measure the wall time each driver spends deciding from now on
+    /// (`take_decision_time`), or stop. Off by default; the decisions are the same bits
+    /// either way.
+    pub fn clock_decisions(&mut self, on: bool) {
+        self.clock = DecisionClock { on, spent: Vec::new() };
+    }
+
+    /// The wall time vehicle `id`'s driver spent deciding since the last call (zero
+    /// unless `clock_decisions` is on).
+    pub fn take_decision_time(&mut self, id: VehicleId) -> Duration {
+        self.clock.spent.get_mut(id.0 as usize).map_or(Duration::ZERO, std::mem::take)
     }
 
     /// Explains the game-theoretic cars' `decisions` of this period from the scene they
@@ -533,7 +591,7 @@ impl World {
     /// `decision_threads` parts in parallel when there are two or more of them (each reads the
     /// scene only, so the bits do not depend on the threads); empty otherwise, and the
     /// caller decides them in turn.
-    fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Vec<(usize, Decision)> {
+    fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Vec<(usize, Decision, Duration)> {
         if self.decision_threads < 2 {
             return Vec::new();
         }
@@ -553,7 +611,14 @@ impl World {
         } else {
             gt.len().div_ceil(self.decision_threads)
         };
-        gt.par_chunks(chunk).flat_map_iter(|part| part.iter().map(|&i| (i, self.decide_one(i)))).collect()
+        gt.par_chunks(chunk)
+            .flat_map_iter(|part| {
+                part.iter().map(|&i| {
+                    let (decision, spent) = self.decide_timed(i);
+                    (i, decision, spent)
+                })
+            })
+            .collect()
     }
 
     /// How many threads the game-theoretic cars of one control period may decide on

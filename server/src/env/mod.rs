@@ -25,9 +25,12 @@ mod risk;
 mod simulate;
 mod snapshot;
 
+use std::collections::VecDeque;
+
 use arena_protocol::{
     Action, ActionType, AgentStart, AgentStep, BuiltinPolicy, CreateOptions, DecisionExplained, EndReason, EnvSpecs,
-    ErrorCode, ErrorReply, Frame, Observation, ObservationKind, RenderMode, ResetOptions, WorldFrame, WorldStart,
+    EnvStatistics, ErrorCode, ErrorReply, Frame, Observation, ObservationKind, RenderMode, ResetOptions, WorldFrame,
+    WorldStart,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -91,6 +94,10 @@ pub struct Env {
     /// The current episode's world seed and reset overrides, from which a snapshot's
     /// episode is built again.
     reset_inputs: (u64, Vec<(String, arena_protocol::OptionValue)>),
+    /// Per agent, the server's wall time deciding for it in each step its built-in
+    /// `policy` drove it (µs), the newest `EnvStatistics::MAX_STEPS`: the `Statistics`
+    /// reply, never an info.
+    decision_micros: Vec<VecDeque<f32>>,
 }
 
 /// What `step` works in, per agent slot or per live agent.
@@ -183,6 +190,7 @@ impl Env {
         Ok(Env {
             identity: snapshot::identity(&scenario),
             reset_inputs: (0, Vec::new()),
+            decision_micros: Vec::new(),
             episode: scenario.clone(),
             scenario,
             observation: options.observation.unwrap_or(ObservationKind::Kinematics),
@@ -269,10 +277,7 @@ impl Env {
             recording::check_fits(world.vehicles().len(), frames_per_step(&episode, &world))?;
             self.recorder.restart(&world);
         }
-        if self.explain {
-            explain::check_fits(&world, frames_per_step(&episode, &world) - 1)?;
-            world.set_explain(true);
-        }
+        self.prepare(&mut world, &episode)?;
         self.seeds = seeds;
         self.episode = episode;
         self.cycles = 0;
@@ -299,6 +304,17 @@ impl Env {
         Ok(starts)
     }
 
+    /// Turns on in a new or restored world what this env's options ask of it: explained
+    /// decisions, and the decision clock when the server drives the learners.
+    fn prepare(&self, world: &mut World, episode: &Scenario) -> Result<(), ErrorReply> {
+        if self.explain {
+            explain::check_fits(world, frames_per_step(episode, world) - 1)?;
+            world.set_explain(true);
+        }
+        world.clock_decisions(self.policy.is_some());
+        Ok(())
+    }
+
     /// One env step, in phases: actions are checked (all before any is applied, so a
     /// refused step leaves the env as it was) and applied, the world simulated, and each
     /// agent live before the step observed, rewarded, terminated and told its info.
@@ -306,6 +322,7 @@ impl Env {
         self.check_actions(actions)?;
         self.apply_actions();
         self.simulate();
+        self.clock_decisions();
         let mut world = self.world.take().expect("checked: reset before step");
         let steps = (0..self.scratch.live_before.len()).map(|k| self.agent_step(&mut world, k)).collect();
         self.world = Some(world);
@@ -428,6 +445,31 @@ impl Env {
         self.cycles += 1;
     }
 
+    /// Notes the wall time the server's policy spent on each agent it drove this step.
+    fn clock_decisions(&mut self) {
+        let Some(world) = self.world.as_mut().filter(|_| self.policy.is_some()) else { return };
+        self.decision_micros.resize_with(self.agents.len(), VecDeque::new);
+        for &i in &self.scratch.live_before {
+            let spent = world.take_decision_time(self.agents[i].vehicle);
+            let kept = &mut self.decision_micros[i];
+            if kept.len() == EnvStatistics::MAX_STEPS {
+                kept.pop_front();
+            }
+            kept.push_back(spent.as_secs_f64() as f32 * 1e6);
+        }
+    }
+
+    /// What the server spent on this env (the `Statistics` reply).
+    pub fn statistics(&self) -> EnvStatistics {
+        let decision_micros = self
+            .agents
+            .iter()
+            .zip(&self.decision_micros)
+            .map(|(agent, kept)| (agent.name.clone(), kept.iter().copied().collect()))
+            .collect();
+        EnvStatistics { decision_micros }
+    }
+
     /// The `k`-th agent live before the step: observed, rewarded, terminated, its info.
     fn agent_step(&mut self, world: &mut World, k: usize) -> AgentStep {
         let i = self.scratch.live_before[k];
@@ -484,16 +526,41 @@ impl Env {
         Ok(observation::state(world, &self.scenario))
     }
 
-    /// A picture of the road around the first agent.
-    pub fn render(&self, mode: RenderMode) -> Result<Frame, ErrorReply> {
+    /// A picture of the road around the vehicle named `follow` (any vehicle of the
+    /// scenario), else around the first agent.
+    pub fn render(&self, mode: RenderMode, follow: Option<&str>) -> Result<Frame, ErrorReply> {
         let world =
             self.world.as_ref().ok_or_else(|| error(ErrorCode::NotReset, "render before reset: call reset first"))?;
-        let focus = self.agents.first().map(|a| a.vehicle);
+        let focus = match follow {
+            Some(name) => Some(world.find(name).ok_or_else(|| unknown_vehicle(world, name))?),
+            None => self.agents.first().map(|a| a.vehicle),
+        };
         Ok(match mode {
-            RenderMode::RgbArray => render::rgb(world, focus, self.render_size),
+            RenderMode::RgbArray => {
+                render::rgb(world, focus, focus.and_then(|id| self.end_shown(id)), self.render_size)
+            }
             RenderMode::Ansi => Frame::Ansi(render::ansi(world, focus)),
         })
     }
+
+    /// How vehicle `id`'s episode ended, as a frame shows it: the world's ending, else
+    /// the time limit for an agent no longer live.
+    fn end_shown(&self, id: VehicleId) -> Option<&'static str> {
+        let world = self.world.as_ref()?;
+        let out_of_time = self.agents.iter().any(|a| a.vehicle == id && !a.live);
+        world.ending(id).map(render::ending_name).or(out_of_time.then_some("TIME LIMIT"))
+    }
+}
+
+/// The refusal of a render that follows a vehicle the world does not have.
+fn unknown_vehicle(world: &World, name: &str) -> ErrorReply {
+    let names: Vec<&str> = world.vehicles().iter().map(|v| v.name.as_str()).collect();
+    let shown = if names.len() > 20 {
+        format!("{}, ... ({} in all)", names[..20].join(", "), names.len())
+    } else {
+        names.join(", ")
+    };
+    error(ErrorCode::InvalidOption, format!("render: no vehicle named '{name}' to follow; the vehicles are {shown}"))
 }
 
 /// The protocol's words for the model's own types, mapped once.

@@ -1,15 +1,26 @@
-//! Pictures of the road around an agent, drawn on the server so every client gets the
-//! same frame: `rgb` (top-down, the road straightened into its Frenet frame, H x W x 3
-//! uint8, with the simulated time, the focus car's speed and a legend of who drives
-//! which colour) and `ansi` (lanes as rows of text). The window follows the focus
-//! vehicle. Learners are green, game-theoretic cars blue, IDM cars yellow, crashed red.
+//! Pictures of the road around a vehicle, drawn on the server so every client gets the
+//! same frame: `rgb` (top-down in world coordinates, north up, the road drawn from its
+//! own geometry so a bend is a bend; H x W x 3 uint8, with the simulated time, the
+//! followed car's name and speed, its end reason once its episode ended, lane ends
+//! marked, and a legend of who drives which colour, text scaled with the frame) and
+//! `ansi` (lanes as rows of text). The window follows one vehicle, the first learner
+//! unless the client names another. Learners are green, game-theoretic cars blue, IDM cars
+//! yellow, crashed red; the followed car has a white outline.
 
 use arena_protocol::Frame;
 
-use arena_sim::{Driver, Status, Vehicle, VehicleId, World};
+use arena_sim::{Driver, Ending, LaneId, Status, Vehicle, VehicleId, World};
 
-/// Metres of road shown ahead of and behind the focus vehicle in `rgb`.
-const RGB_HALF_WINDOW: f64 = 60.0;
+/// Metres of road across the width of an `rgb` frame.
+const RGB_WINDOW: f64 = 120.0;
+/// Frame height (pixels) per step of text size: text is drawn in a 3 x 5 font, each font
+/// pixel `height / TEXT_HEIGHT_PER_SIZE` pixels square (at least 1), so a legend stays
+/// legible at 600 x 1200 and fits at 60 x 120.
+const TEXT_HEIGHT_PER_SIZE: u32 = 150;
+/// Length of the lane-end marker (m), painted just before the end across the ending lane.
+const LANE_END_MARKER: f64 = 1.5;
+/// Width of the followed car's outline (m).
+const OUTLINE: f64 = 0.35;
 /// Metres of road per character in `ansi`, and characters each side of the focus.
 const ANSI_METRES_PER_CHAR: f64 = 2.0;
 const ANSI_HALF_WIDTH: usize = 40;
@@ -22,9 +33,14 @@ const GT: [u8; 3] = [60, 120, 235];
 const IDM: [u8; 3] = [230, 200, 60];
 const CRASHED: [u8; 3] = [220, 40, 40];
 const TEXT: [u8; 3] = [255, 255, 255];
+/// The lane-end marker's two colours, in a checker.
+const LANE_END: [[u8; 3]; 2] = [[200, 30, 30], [250, 250, 250]];
+/// Behind the end reason.
+const BANNER: [u8; 3] = [150, 20, 20];
 
 /// The legend, in the order drawn: each colour and its label.
-const LEGEND: [([u8; 3], &str); 4] = [(LEARNER, "LEARNER"), (GT, "GT"), (IDM, "IDM"), (CRASHED, "CRASH")];
+const LEGEND: [([u8; 3], &str); 5] =
+    [(LEARNER, "LEARNER"), (GT, "GT"), (IDM, "IDM"), (CRASHED, "CRASH"), (LANE_END[0], "LANE END")];
 
 fn colour(vehicle: &Vehicle) -> [u8; 3] {
     match (vehicle.status, &vehicle.driver) {
@@ -35,6 +51,7 @@ fn colour(vehicle: &Vehicle) -> [u8; 3] {
     }
 }
 
+/// The followed vehicle's (s, d), or the first vehicle's s on the reference line.
 fn focus_point(world: &World, focus: Option<VehicleId>) -> (f64, f64) {
     match focus {
         Some(id) => (world.vehicle(id).state.s, world.vehicle(id).state.d),
@@ -42,41 +59,150 @@ fn focus_point(world: &World, focus: Option<VehicleId>) -> (f64, f64) {
     }
 }
 
-/// A top-down picture, `size` = (height, width) in pixels.
-pub fn rgb(world: &World, focus: Option<VehicleId>, (height, width): (u32, u32)) -> Frame {
-    let (s0, _) = focus_point(world, focus);
-    let scale = width as f64 / (2.0 * RGB_HALF_WINDOW);
-    let road_width = world.road().lane_width() * world.road().lane_count() as f64;
-    let top = world.road().lane_width() / 2.0 + (height as f64 / scale - road_width) / 2.0;
-    let to_frenet =
-        |row: u32, col: u32| (s0 + (col as f64 + 0.5) / scale - RGB_HALF_WINDOW, top - (row as f64 + 0.5) / scale);
+/// The end reason shown for a vehicle whose episode ended in the world (a learner that
+/// ran out of time is the env's to name).
+pub fn ending_name(ending: Ending) -> &'static str {
+    match ending {
+        Ending::Collision => "COLLISION",
+        Ending::LaneEnd => "LANE END",
+        Ending::OffRoad => "OFF ROAD",
+        Ending::RoadEnd => "ROAD END",
+    }
+}
+
+/// The metres-to-pixels map of a frame centred on a global point, north up.
+#[derive(Clone, Copy)]
+struct Camera {
+    centre: (f64, f64),
+    /// Pixels per metre.
+    scale: f64,
+    size: (u32, u32),
+}
+
+impl Camera {
+    /// The global (x, y) at the centre of pixel (row, col).
+    fn world_at(&self, row: u32, col: u32) -> (f64, f64) {
+        let (height, width) = self.size;
+        (
+            self.centre.0 + (col as f64 + 0.5 - width as f64 / 2.0) / self.scale,
+            self.centre.1 - (row as f64 + 0.5 - height as f64 / 2.0) / self.scale,
+        )
+    }
+
+    /// The pixel (row, col) a global point falls in, as floats (may lie outside).
+    fn pixel_of(&self, (x, y): (f64, f64)) -> (f64, f64) {
+        let (height, width) = self.size;
+        (height as f64 / 2.0 - (y - self.centre.1) * self.scale, width as f64 / 2.0 + (x - self.centre.0) * self.scale)
+    }
+}
+
+/// A top-down picture in world coordinates, `size` = (height, width) in pixels, following
+/// `focus`; `end` is the followed car's end reason once its episode ended.
+pub fn rgb(world: &World, focus: Option<VehicleId>, end: Option<&str>, (height, width): (u32, u32)) -> Frame {
+    let (s0, d0) = focus_point(world, focus);
+    let centre = world.road().to_global(s0, d0, 0.0);
+    let camera = Camera { centre: (centre.x, centre.y), scale: width as f64 / RGB_WINDOW, size: (height, width) };
     let mut pixels = vec![0u8; (height * width * 3) as usize];
     for row in 0..height {
         for col in 0..width {
-            let (s, d) = to_frenet(row, col);
-            let mut paint = if world.road().contains(s, d) { ASPHALT } else { GRASS };
-            if paint == ASPHALT && is_marking(world, s, d, 1.0 / scale) {
-                paint = MARKING;
-            }
             let at = ((row * width + col) * 3) as usize;
-            pixels[at..at + 3].copy_from_slice(&paint);
+            pixels[at..at + 3].copy_from_slice(&ground(world, camera.world_at(row, col), 1.0 / camera.scale));
         }
     }
-    for vehicle in world.vehicles().iter().filter(|v| v.on_road() && (v.state.s - s0).abs() < RGB_HALF_WINDOW + 5.0) {
-        draw_vehicle(world, vehicle, &mut pixels, (height, width), scale, (s0 - RGB_HALF_WINDOW, top));
+    let mut canvas = Canvas { pixels: &mut pixels, height, width, size: (height / TEXT_HEIGHT_PER_SIZE).max(1) };
+    let reach = RGB_WINDOW.hypot(height as f64 / camera.scale) / 2.0 + 5.0;
+    // A car that left the road stays where it stopped; one that drove off its end is gone.
+    let shown = |v: &&Vehicle| v.status != Status::Exited;
+    for vehicle in world.vehicles().iter().filter(shown) {
+        let pose = world.road().to_global(vehicle.state.s, vehicle.state.d, vehicle.state.heading);
+        if (pose.x - camera.centre.0).hypot(pose.y - camera.centre.1) > reach {
+            continue;
+        }
+        let (half_length, half_width) = (world.vehicle_params().length / 2.0, world.vehicle_params().width / 2.0);
+        if focus.is_some_and(|id| world.vehicle(id).name == vehicle.name) {
+            draw_box(
+                &mut canvas,
+                &camera,
+                (pose.x, pose.y, pose.heading),
+                (half_length + OUTLINE, half_width + OUTLINE),
+                TEXT,
+            );
+        }
+        draw_box(&mut canvas, &camera, (pose.x, pose.y, pose.heading), (half_length, half_width), colour(vehicle));
     }
-    let mut canvas = Canvas { pixels: &mut pixels, height, width };
-    let caption = match focus {
-        Some(id) => format!("T {:.1} S  {:.1} M/S", world.time(), world.vehicle(id).state.vx),
-        None => format!("T {:.1} S", world.time()),
-    };
-    canvas.text(2, 2, &caption, TEXT);
-    let mut x = 2;
-    for (paint, label) in LEGEND {
-        canvas.rect(x, height.saturating_sub(8), 5, 5, paint);
-        x = canvas.text(x + 7, height.saturating_sub(8), label, TEXT) + 6;
-    }
+    caption(&mut canvas, world, focus, end);
     Frame::Rgb { height, width, pixels }
+}
+
+/// The paint of the ground at global (x, y): grass, asphalt, a lane line or a lane-end
+/// marker. `pixel` is a pixel's size in metres.
+fn ground(world: &World, (x, y): (f64, f64), pixel: f64) -> [u8; 3] {
+    let road = world.road();
+    let (s, d) = road.to_frenet(x, y);
+    // The nearest point of the reference line is clamped to the road: a point before its
+    // start or past its end projects onto an end exactly, and is not road.
+    if s <= 0.0 || s >= road.length() || !road.contains(s, d) {
+        return GRASS;
+    }
+    if is_marking(world, s, d, pixel) {
+        return MARKING;
+    }
+    let lane = road.nearest_lane(d);
+    let end = road.lane_end(lane);
+    if end < road.length() && (end - LANE_END_MARKER..=end).contains(&s) {
+        let checker = ((s - end) / 0.5).floor() as i64 + ((d - road.lane_center(lane)) / 0.5).floor() as i64;
+        return LANE_END[checker.rem_euclid(2) as usize];
+    }
+    ASPHALT
+}
+
+/// The time, the followed car and its speed top left; its end reason on a banner top
+/// right; the legend along the bottom.
+fn caption(canvas: &mut Canvas, world: &World, focus: Option<VehicleId>, end: Option<&str>) {
+    let k = canvas.size;
+    let mut text = format!("T {:.1} S", world.time());
+    if let Some(id) = focus {
+        let vehicle = world.vehicle(id);
+        text += &format!("  {} {:.1} M/S", vehicle.name, vehicle.state.vx);
+    }
+    canvas.text(2 * k, 2 * k, &text, TEXT);
+    if let Some(end) = end {
+        let label = format!("END: {end}");
+        let width = canvas.text_width(&label);
+        let x = canvas.width.saturating_sub(width + 4 * k);
+        canvas.rect(x, k, width + 3 * k, 7 * k, BANNER);
+        canvas.text(x + 2 * k, 2 * k, &label, TEXT);
+    }
+    let y = canvas.height.saturating_sub(7 * k);
+    let mut x = 2 * k;
+    for (paint, label) in LEGEND {
+        canvas.rect(x, y, 5 * k, 5 * k, paint);
+        if paint == LANE_END[0] {
+            // The marker's checker, so it is not read as a crash.
+            for (dx, dy) in (0..5).flat_map(|dx| (0..5).map(move |dy| (dx, dy))).filter(|(dx, dy)| (dx + dy) % 2 == 1) {
+                canvas.rect(x + dx * k, y + dy * k, k, k, LANE_END[1]);
+            }
+        }
+        x = canvas.text(x + 7 * k, y, label, TEXT) + 6 * k;
+    }
+}
+
+/// Paints an oriented box (centre x, y and heading, half length and width, metres).
+fn draw_box(canvas: &mut Canvas, camera: &Camera, (x, y, heading): (f64, f64, f64), half: (f64, f64), paint: [u8; 3]) {
+    let (row, col) = camera.pixel_of((x, y));
+    let reach = (half.0 + half.1) * camera.scale;
+    let rows = (row - reach).floor().max(0.0) as u32..(row + reach).ceil().clamp(0.0, canvas.height as f64) as u32;
+    let cols = (col - reach).floor().max(0.0) as u32..(col + reach).ceil().clamp(0.0, canvas.width as f64) as u32;
+    let (sin, cos) = heading.sin_cos();
+    for r in rows {
+        for c in cols.clone() {
+            let (px, py) = camera.world_at(r, c);
+            let (dx, dy) = (px - x, py - y);
+            if (dx * cos + dy * sin).abs() <= half.0 && (-dx * sin + dy * cos).abs() <= half.1 {
+                canvas.put(c, r, paint);
+            }
+        }
+    }
 }
 
 /// Whether (s, d) lies on a painted line: a dashed line between two lanes that both go
@@ -91,7 +217,7 @@ pub(super) fn is_marking(world: &World, s: f64, d: f64, pixel: f64) -> bool {
     }
     // The boundary between lane `left` (above) and `left + 1` (below).
     let left = -boundary as i64 - 1;
-    let open = |lane: i64| road.has_lane(lane) && s <= road.lane_end(arena_sim::LaneId(lane as u32));
+    let open = |lane: i64| road.has_lane(lane) && s <= road.lane_end(LaneId(lane as u32));
     match (open(left), open(left + 1)) {
         (true, true) => (s / 3.0).rem_euclid(2.0) < 1.0,
         (true, false) | (false, true) => true,
@@ -104,6 +230,8 @@ struct Canvas<'a> {
     pixels: &'a mut [u8],
     height: u32,
     width: u32,
+    /// Pixels per font pixel.
+    size: u32,
 }
 
 impl Canvas<'_> {
@@ -122,82 +250,73 @@ impl Canvas<'_> {
         }
     }
 
-    /// Writes `text` in a 3 x 5 pixel font from (x, y); returns the x after it.
+    /// Writes `text` in a 3 x 5 font, each font pixel `size` pixels square, from (x, y);
+    /// returns the x after it.
     fn text(&mut self, mut x: u32, y: u32, text: &str, paint: [u8; 3]) -> u32 {
+        let k = self.size;
         for c in text.chars() {
             let glyph = glyph(c);
             for (row, bits) in glyph.iter().enumerate() {
                 for col in 0..3 {
                     if bits & (0b100 >> col) != 0 {
-                        self.put(x + col, y + row as u32, paint);
+                        self.rect(x + col * k, y + row as u32 * k, k, k, paint);
                     }
                 }
             }
-            x += 4;
+            x += 4 * k;
         }
         x
+    }
+
+    /// The width `text` takes (pixels).
+    fn text_width(&self, text: &str) -> u32 {
+        4 * self.size * text.chars().count() as u32
     }
 }
 
 /// Rows of a 3 x 5 glyph, top first, leftmost pixel the highest of 3 bits.
 fn glyph(c: char) -> [u8; 5] {
     match c.to_ascii_uppercase() {
-        '0' => [7, 5, 5, 5, 7],
+        '0' | 'O' => [7, 5, 5, 5, 7],
         '1' => [2, 6, 2, 2, 7],
         '2' => [7, 1, 7, 4, 7],
         '3' => [7, 1, 7, 1, 7],
         '4' => [5, 5, 7, 1, 1],
-        '5' => [7, 4, 7, 1, 7],
+        '5' | 'S' => [7, 4, 7, 1, 7],
         '6' => [7, 4, 7, 5, 7],
         '7' => [7, 1, 1, 1, 1],
         '8' => [7, 5, 7, 5, 7],
         '9' => [7, 5, 7, 1, 7],
         '.' => [0, 0, 0, 0, 2],
+        ':' => [0, 2, 0, 2, 0],
         '/' => [1, 1, 2, 4, 4],
         '-' => [0, 0, 7, 0, 0],
+        '_' => [0, 0, 0, 0, 7],
         'A' => [2, 5, 7, 5, 5],
+        'B' => [6, 5, 6, 5, 6],
         'C' => [7, 4, 4, 4, 7],
         'D' => [6, 5, 5, 5, 6],
         'E' => [7, 4, 6, 4, 7],
+        'F' => [7, 4, 6, 4, 4],
         'G' => [7, 4, 5, 5, 7],
         'H' => [5, 5, 7, 5, 5],
         'I' => [7, 2, 2, 2, 7],
+        'J' => [1, 1, 1, 5, 7],
+        'K' => [5, 5, 6, 5, 5],
         'L' => [4, 4, 4, 4, 7],
         'M' => [5, 7, 7, 5, 5],
         'N' => [6, 5, 5, 5, 5],
+        'P' => [7, 5, 7, 4, 4],
+        'Q' => [7, 5, 5, 7, 1],
         'R' => [6, 5, 6, 5, 5],
-        'S' => [7, 4, 7, 1, 7],
         'T' => [7, 2, 2, 2, 2],
+        'U' => [5, 5, 5, 5, 7],
+        'V' => [5, 5, 5, 5, 2],
+        'W' => [5, 5, 7, 7, 5],
+        'X' => [5, 5, 2, 5, 5],
+        'Y' => [5, 5, 2, 2, 2],
+        'Z' => [7, 1, 2, 4, 7],
         _ => [0; 5],
-    }
-}
-
-fn draw_vehicle(
-    world: &World,
-    vehicle: &Vehicle,
-    pixels: &mut [u8],
-    (height, width): (u32, u32),
-    scale: f64,
-    (s_left, top): (f64, f64),
-) {
-    let (half_length, half_width) = (world.vehicle_params().length / 2.0, world.vehicle_params().width / 2.0);
-    let (sin, cos) = vehicle.state.heading.sin_cos();
-    let reach = half_length + half_width;
-    let col_range = ((vehicle.state.s - reach - s_left) * scale).floor().max(0.0) as u32
-        ..((vehicle.state.s + reach - s_left) * scale).ceil().clamp(0.0, width as f64) as u32;
-    let row_range = ((top - vehicle.state.d - reach) * scale).floor().max(0.0) as u32
-        ..((top - vehicle.state.d + reach) * scale).ceil().clamp(0.0, height as f64) as u32;
-    let paint = colour(vehicle);
-    for row in row_range {
-        for col in col_range.clone() {
-            let ds = s_left + (col as f64 + 0.5) / scale - vehicle.state.s;
-            let dd = top - (row as f64 + 0.5) / scale - vehicle.state.d;
-            let (along, across) = (ds * cos + dd * sin, -ds * sin + dd * cos);
-            if along.abs() <= half_length && across.abs() <= half_width {
-                let at = ((row * width + col) * 3) as usize;
-                pixels[at..at + 3].copy_from_slice(&paint);
-            }
-        }
     }
 }
 
@@ -209,7 +328,7 @@ pub fn ansi(world: &World, focus: Option<VehicleId>) -> String {
     let s_at = |col: usize| s0 + (col as f64 - ANSI_HALF_WIDTH as f64) * ANSI_METRES_PER_CHAR;
     let mut rows: Vec<Vec<char>> = (0..world.road().lane_count())
         .map(|lane| {
-            let end = world.road().lane_end(arena_sim::LaneId(lane as u32));
+            let end = world.road().lane_end(LaneId(lane as u32));
             (0..columns).map(|col| if s_at(col) > end { ' ' } else { '.' }).collect()
         })
         .collect();

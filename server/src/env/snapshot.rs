@@ -190,6 +190,9 @@ impl Env {
         }
         if self.recording {
             recording::check_fits(world.vehicles().len(), super::frames_per_step(&episode, &world))?;
+        }
+        self.prepare(&mut world, &episode)?;
+        if self.recording {
             self.recorder.restart(&world);
         }
         self.seeds = seeds.rng();

@@ -258,17 +258,124 @@ fn slower_can_stop_a_learner_behind_the_end_of_its_lane() {
 fn renders_show_the_road() {
     let mut env = env("overtake", CreateOptions { render_size: Some((60, 120)), ..CreateOptions::default() });
     env.reset(Some(0), NO_OPTIONS).unwrap();
-    let Frame::Rgb { height, width, pixels } = env.render(RenderMode::RgbArray).unwrap() else { panic!("rgb") };
+    let Frame::Rgb { height, width, pixels } = env.render(RenderMode::RgbArray, None).unwrap() else { panic!("rgb") };
     assert_eq!((height, width, pixels.len()), (60, 120, 60 * 120 * 3));
     assert!(pixels.chunks(3).any(|p| p == [50, 200, 80]), "the learner is drawn green");
     assert!(pixels.chunks(3).any(|p| p == [60, 120, 235]), "the game-theoretic adjacent cars are drawn blue");
     assert!(pixels.chunks(3).any(|p| p == [230, 200, 60]), "the IDM lead car is drawn yellow");
     assert!(pixels.chunks(3).filter(|p| *p == [255, 255, 255]).count() > 50, "the time and legend are written");
-    let Frame::Ansi(text) = env.render(RenderMode::Ansi).unwrap() else { panic!("ansi") };
+    let Frame::Ansi(text) = env.render(RenderMode::Ansi, None).unwrap() else { panic!("ansi") };
     let road: String = text.lines().filter(|l| l.starts_with('.') || l.starts_with(' ')).collect();
     assert_eq!((road.matches('@').count(), road.matches('G').count(), road.matches('>').count()), (1, 2, 1), "{text}");
     assert!(text.contains("G game-theoretic"), "{text}");
     assert_eq!(text.lines().filter(|l| l.starts_with('-')).count(), 4, "{text}");
+}
+
+/// The colour of pixel (row, col) of an RGB frame.
+fn pixel(frame: &Frame, row: u32, col: u32) -> [u8; 3] {
+    let Frame::Rgb { width, pixels, .. } = frame else { panic!("rgb") };
+    let at = ((row * width + col) * 3) as usize;
+    [pixels[at], pixels[at + 1], pixels[at + 2]]
+}
+
+/// How many pixels of `frame` have colour `paint`, in rows `rows`.
+fn painted(frame: &Frame, paint: [u8; 3], rows: std::ops::Range<u32>) -> usize {
+    let Frame::Rgb { width, .. } = frame else { panic!("rgb") };
+    rows.flat_map(|row| (0..*width).map(move |col| (row, col))).filter(|&(r, c)| pixel(frame, r, c) == paint).count()
+}
+
+#[test]
+fn rgb_frames_follow_the_vehicle_the_client_names() {
+    let mut env = env("merge", CreateOptions { render_size: Some((300, 600)), ..CreateOptions::default() });
+    env.reset(Some(0), NO_OPTIONS).unwrap();
+    let centre = |follow| pixel(&env.render(RenderMode::RgbArray, follow).unwrap(), 150, 300);
+    assert_eq!(centre(None), [50, 200, 80], "by default the frame is centred on the learner, drawn green");
+    assert_eq!(centre(Some("ac")), [60, 120, 235], "following the game-theoretic AC puts it, blue, at the centre");
+    let refused = env.render(RenderMode::RgbArray, Some("nobody")).unwrap_err();
+    assert_eq!(refused.code, ErrorCode::InvalidOption);
+    assert!(refused.message.contains("'nobody'") && refused.message.contains("ac, ec_0"), "{refused}");
+    let Frame::Ansi(text) = env.render(RenderMode::Ansi, Some("ac")).unwrap() else { panic!("ansi") };
+    assert!(text.contains("ac: lane 0"), "{text}");
+}
+
+#[test]
+fn rgb_frames_draw_a_bend_as_a_bend() {
+    // A left bend of radius 80 m from (0, 0), heading east. 40 m along it the road lies
+    // at (80 sin 0.5, 80 (1 - cos 0.5)) = (38.4, 9.8); the straight tangent at (40, 0) is
+    // 9.4 m right of the bend's centre line, off the road.
+    let text = r#"
+        name = "bend"
+        [road]
+        lanes = 2
+        lane_width = 4.0
+        speed_limits = [20.0, 20.0]
+        origin = { x = 0.0, y = 0.0, heading = 0.0 }
+        sections = [{ length = 300.0, radius = 80.0 }]
+        [[vehicle]]
+        name = "ego"
+        lane = 0
+        s = 1.0
+        speed = 10.0
+        driver = { kind = "agent", style = "normal" }
+    "#;
+    let options = CreateOptions { render_size: Some((300, 600)), ..CreateOptions::default() };
+    let mut env = Env::from_text("bend.toml", text, &options, 1).unwrap();
+    env.reset(Some(0), NO_OPTIONS).unwrap();
+    let frame = env.render(RenderMode::RgbArray, None).unwrap();
+    // 5 pixels per metre (600 px for 120 m), centred on the car at s = 1 m.
+    let at = |x: f64, y: f64| pixel(&frame, (150.0 - (y - 0.0) * 5.0) as u32, (300.0 + (x - 1.0) * 5.0) as u32);
+    assert_eq!(at(38.4, 9.8), [90, 90, 90], "40 m along the bend is asphalt");
+    assert_eq!(at(40.0, 0.0), [60, 110, 60], "the straight tangent 40 m on is grass");
+    assert_eq!(at(-10.0, 0.0), [60, 110, 60], "before the road's start is grass");
+}
+
+#[test]
+fn rgb_frames_mark_lane_ends_and_show_how_the_episode_ended() {
+    let mut env = env("merge", CreateOptions { render_size: Some((300, 600)), ..CreateOptions::default() });
+    env.reset(Some(0), NO_OPTIONS).unwrap();
+    let first = env.render(RenderMode::RgbArray, None).unwrap();
+    assert_eq!(painted(&first, [150, 20, 20], 0..300), 0, "no end banner while the episode runs");
+    assert_eq!(painted(&first, [200, 30, 30], 0..280), 0, "the lane end (s = 252) is out of the first frame");
+    // Idle in the ending lane: the learner drives past its end.
+    while !env.live_agents().is_empty() {
+        env.step(&[]).unwrap();
+    }
+    let last = env.render(RenderMode::RgbArray, None).unwrap();
+    assert!(painted(&last, [150, 20, 20], 0..20) > 100, "the end reason is written on a red banner");
+    assert!(painted(&last, [200, 30, 30], 0..280) > 20, "the lane end is marked red and white across its lane");
+}
+
+#[test]
+fn rgb_text_grows_with_the_frame() {
+    let mut env = env("merge", CreateOptions { render_size: Some((600, 1200)), ..CreateOptions::default() });
+    env.reset(Some(0), NO_OPTIONS).unwrap();
+    let large = env.render(RenderMode::RgbArray, None).unwrap();
+    let mut env =
+        super::tests::env("merge", CreateOptions { render_size: Some((150, 300)), ..CreateOptions::default() });
+    env.reset(Some(0), NO_OPTIONS).unwrap();
+    let small = env.render(RenderMode::RgbArray, None).unwrap();
+    // The legend's learner swatch: 5 x 5 font pixels, each 1 pixel at 150 rows, 4 at 600.
+    assert_eq!(painted(&small, [50, 200, 80], 143..150), 25);
+    assert_eq!(painted(&large, [50, 200, 80], 572..600), 25 * 16);
+}
+
+#[test]
+fn the_server_clocks_the_decisions_of_the_learners_it_drives_and_nothing_else() {
+    let policy = Some(BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Stackelberg });
+    let mut driven = env("merge", CreateOptions { policy, ..CreateOptions::default() });
+    driven.reset(Some(0), NO_OPTIONS).unwrap();
+    for _ in 0..5 {
+        driven.step(&[]).unwrap();
+    }
+    let statistics = driven.statistics();
+    assert_eq!(statistics.decision_micros.len(), 1);
+    let (agent, micros) = &statistics.decision_micros[0];
+    assert_eq!((agent.as_str(), micros.len()), ("ec_0", 5), "one sample per step");
+    assert!(micros.iter().all(|&us| us > 0.0 && us.is_finite()), "{micros:?}");
+    let mut played = env("merge", CreateOptions::default());
+    played.reset(Some(0), NO_OPTIONS).unwrap();
+    played.step(&[]).unwrap();
+    assert!(played.statistics().decision_micros.is_empty(), "a learner the client drives is the client's to time");
 }
 
 #[test]
@@ -433,7 +540,7 @@ fn a_render_size_whose_frames_could_not_travel_is_refused_at_creation() {
     assert!(refused.message.contains("50331648 bytes") && refused.message.contains("message limit"), "{refused}");
     let mut largest = create((2300, 2300)).unwrap();
     largest.reset(Some(0), NO_OPTIONS).unwrap();
-    let Frame::Rgb { pixels, .. } = largest.render(RenderMode::RgbArray).unwrap() else { panic!("rgb") };
+    let Frame::Rgb { pixels, .. } = largest.render(RenderMode::RgbArray, None).unwrap() else { panic!("rgb") };
     assert!(
         arena_protocol::encode(&Frame::Rgb { height: 2300, width: 2300, pixels }).len()
             < arena_protocol::MAX_MESSAGE_BYTES

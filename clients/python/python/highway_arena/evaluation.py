@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+import time
 import warnings
 from dataclasses import dataclass, field
 
@@ -35,7 +36,9 @@ CLIENT_POLICIES = ("idle", "random")
 class Evaluation:
     """What ``evaluate`` found: the tables as Markdown, one summary per (scenario,
     policy) with each figure's count, mean and the mean's interval, median and IQM with
-    their intervals, the differences from the reference policy, and every episode."""
+    their intervals, the differences from the reference policy, every episode, and each
+    policy's compute budget (``budget``, ``budget_markdown``: wall time per decision on
+    this machine, kept out of the figures, which are the same bits on every run)."""
 
     markdown: str
     summaries: list
@@ -43,6 +46,11 @@ class Evaluation:
     figures: list
     _files: dict = field(repr=False, default_factory=dict)
     crossplay: "Crossplay | None" = None
+    # What each policy's decisions cost per agent and step on this machine: dicts with
+    # "scenario", "policy", "clock" ('server': a built-in driver, timed by the server;
+    # 'client': a callable, timed here), "steps", "p50_us", "p99_us".
+    budget: list = field(default_factory=list)
+    budget_markdown: str = ""
 
     def summary(self, scenario, policy) -> dict:
         """{figure: {"n", "mean", "low", "high", "median", "iqm"}} of one policy on one
@@ -63,7 +71,8 @@ class Evaluation:
         raise KeyError(f"no summary of policy {policy!r} on scenario {scenario!r}")
 
     def write(self, out) -> list:
-        """Writes results.md, results.csv, differences.csv, episodes.csv, results.json and, with
+        """Writes results.md, results.csv, differences.csv, episodes.csv, results.json,
+        budget.md, budget.csv and, with
         matplotlib installed, costs_<scenario>.png and rates_<scenario>.png into ``out``;
         returns the paths written."""
         os.makedirs(out, exist_ok=True)
@@ -226,7 +235,7 @@ def evaluate(
         raise ValueError("opponents and league cannot be combined: a league ranks policies against each scenario's own opponents")
     _warn_on_training_seeds(named, range(int(seed), int(seed) + episodes))
     cells = _core.crossplay_opponents() if opponents else [(None, [])]
-    rows = []
+    rows, timed = [], []
     bar = _progress(episodes * len(named) * len(scenarios) * len(cells), quiet)
     try:
         for scenario in scenarios:
@@ -238,11 +247,14 @@ def evaluate(
                     kwargs = dict(env_kwargs)
                     if overrides:
                         kwargs["overrides"] = {**(env_kwargs.get("overrides") or {}), **dict(overrides)}
-                    rows.extend(_run(scenario, row, policy, episodes, seed, max_cycles, connect, kwargs, bar))
+                    done, clock, micros = _run(scenario, row, policy, episodes, seed, max_cycles, connect, kwargs, bar)
+                    rows.extend(done)
+                    timed.append((scenario, row, clock, micros))
     finally:
         if bar is not None:
             bar.close()
     markdown, csv, differences_csv, episodes_csv, document = _core.eval_report(rows, reference, int(bootstrap))
+    budget_markdown, budget_csv, budget = _core.budget_report(timed)
     parsed = json.loads(document)
     crossplay = None
     if opponents:
@@ -259,9 +271,13 @@ def evaluate(
             "differences.csv": differences_csv,
             "episodes.csv": episodes_csv,
             "results.json": document,
+            "budget.md": budget_markdown,
+            "budget.csv": budget_csv,
             **({"crossplay.md": crossplay.markdown} if crossplay else {}),
         },
         crossplay=crossplay,
+        budget=[dict(zip(("scenario", "policy", "clock", "steps", "p50_us", "p99_us"), row)) for row in budget],
+        budget_markdown=budget_markdown,
     )
     if out is not None:
         result.write(out)
@@ -290,8 +306,9 @@ def _join_league(path, rows, scenarios, seed, episodes, max_cycles, rank, bootst
         f.write(table)
 
 
-def _run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs, bar) -> list:
-    """(policy name, scenario, seed, agent, last info) of each agent's episode."""
+def _run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs, bar) -> tuple:
+    """(policy name, scenario, seed, agent, last info) of each agent's episode; whose clock
+    timed the policy ('server' or 'client'); its decision time per agent and step (µs)."""
     # Any other name is the server's to parse: an unknown one raises ValueError listing them.
     built_in = isinstance(policy, str) and policy not in CLIENT_POLICIES
     try:
@@ -303,23 +320,25 @@ def _run(scenario, name, policy, episodes, seed, max_cycles, connect, env_kwargs
             # The server's names, plus what evaluate runs here.
             raise ValueError(f"{error}, {', '.join(CLIENT_POLICIES)}, or a callable observation -> action") from None
         raise
-    rows = []
+    rows, micros = [], []
     try:
         for i in range(episodes):
             episode_seed = seed + i
             observations, _ = env.reset(seed=episode_seed)
             spaces = _seeded_spaces(env, episode_seed)
             while env.agents:
-                actions = _actions(policy, built_in, spaces, env.agents, observations)
+                actions = _actions(policy, built_in, spaces, env.agents, observations, micros)
                 observations, _, terminations, truncations, infos = env.step(actions)
                 for agent, info in infos.items():
                     if terminations[agent] or truncations[agent]:
                         rows.append((name, scenario, episode_seed, agent, info))
             if bar is not None:
                 bar.update(1)
+        if built_in:
+            micros = [us for kept in env._env.statistics().values() for us in kept]
     finally:
         env.close()
-    return rows
+    return rows, "server" if built_in else "client", micros
 
 
 def _seeded_spaces(env, seed) -> dict:
@@ -331,15 +350,23 @@ def _seeded_spaces(env, seed) -> dict:
     return spaces
 
 
-def _actions(policy, built_in, spaces, agents, observations) -> dict:
-    """This step's actions of the live ``agents``: none when the server drives them."""
+def _actions(policy, built_in, spaces, agents, observations, micros=None) -> dict:
+    """This step's actions of the live ``agents``: none when the server drives them. With
+    ``micros`` (a list), each agent's action's wall time (µs) is appended to it."""
     if built_in:
         return {}
-    if policy == "idle":
-        return {a: _idle(spaces[a]) for a in agents}
-    if policy == "random":
-        return {a: spaces[a].sample() for a in agents}
-    return {a: _act(policy, observations[a]) for a in agents}
+    actions = {}
+    for a in agents:
+        started = time.perf_counter_ns()
+        if policy == "idle":
+            actions[a] = _idle(spaces[a])
+        elif policy == "random":
+            actions[a] = spaces[a].sample()
+        else:
+            actions[a] = _act(policy, observations[a])
+        if micros is not None:
+            micros.append((time.perf_counter_ns() - started) / 1000.0)
+    return actions
 
 
 def _idle(space):

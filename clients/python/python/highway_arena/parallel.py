@@ -82,7 +82,10 @@ class ParallelEnv(_ParallelEnv):
     ``gt.<car>.plans``, ``.qp_iterations``, ``.qp_iterations_total``, ``.fallbacks``,
     ``.inexact``), ``explain`` (True: every game-theoretic decision comes with the game
     it played, its cost tables and predicted paths, in ``explanations`` after each step
-    and in the recording; docs/viewing.md, "The AV explained"), ``seed`` (used by the first ``reset()`` that is given none, for
+    and in the recording; docs/viewing.md, "The AV explained"), ``render_size`` ((height,
+    width) of rgb frames, default (300, 600)), ``render_follow`` (the name of the vehicle
+    frames follow, any vehicle of the scenario, e.g. 'ac'; default the first learner; the
+    attribute of the same name changes it later), ``seed`` (used by the first ``reset()`` that is given none, for
     reproducible runs), ``record`` (a path: record every episode into that Rerun
     ``.rrd`` file from the start, as ``start_recording(path)`` does; docs/viewing.md),
     the connection keywords (below), and scenario overrides as
@@ -107,6 +110,7 @@ class ParallelEnv(_ParallelEnv):
         overrides=None,
         *,
         render_size=None,
+        render_follow=None,
         seed=None,
         record=None,
         explain=False,
@@ -148,6 +152,7 @@ class ParallelEnv(_ParallelEnv):
         self._scenario = scenario
         self._first_seed = seed
         self.render_mode = render_mode
+        self.render_follow = render_follow
         self.possible_agents = list(specs["possible_agents"])
         self.agents = []
         self.dt = specs["dt"]
@@ -241,9 +246,9 @@ class ParallelEnv(_ParallelEnv):
             return None
         if self.render_mode == "human":
             # The terminal is this env's screen: the ansi picture, redrawn in place.
-            print("\x1b[2J\x1b[H" + self._env.render("ansi")[1], flush=True)
+            print("\x1b[2J\x1b[H" + self._env.render("ansi", self.render_follow)[1], flush=True)
             return None
-        frame = self._env.render(self.render_mode)
+        frame = self._env.render(self.render_mode, self.render_follow)
         if frame[0] == "ansi":
             return frame[1]
         _, height, width, data = frame

@@ -71,6 +71,16 @@ class GymEnv(gymnasium.Env):
     def render(self):
         return self._parallel.render()
 
+    @property
+    def render_follow(self):
+        """The name of the vehicle frames follow (``ParallelEnv.render_follow``); None is
+        the first learner. Set it to follow another."""
+        return self._parallel.render_follow
+
+    @render_follow.setter
+    def render_follow(self, name):
+        self._parallel.render_follow = name
+
     def snapshot(self) -> bytes:
         """``ParallelEnv.snapshot``: the env's whole state as bytes."""
         return self._parallel.snapshot()

@@ -6,9 +6,11 @@
 //! `idm`) run in the server (the env's `policy` option); `idle` and `random` act here.
 
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use anyhow::Context;
 use arena_client::blocking::{Client, Env};
+use arena_client::eval::budget::{self, Budget, Clock};
 use arena_client::eval::league::{League, LeagueSettings, league_markdown};
 use arena_client::eval::{self, Episode, Settings, Summary, crossplay};
 use arena_client::stats::Bootstrap;
@@ -140,6 +142,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             .progress_chars("=> "),
     );
     let mut episodes = Vec::new();
+    let mut budgets = Vec::new();
     for scenario in &args.scenarios {
         for (name, policy) in &policies {
             let against: Vec<Option<&crossplay::Opponent>> =
@@ -157,7 +160,10 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
                     overrides,
                     args: &args,
                 };
-                episodes.extend(run.episodes(&bar)?);
+                let (done, micros) = run.episodes(&bar)?;
+                episodes.extend(done);
+                let clock = if matches!(policy, Policy::Server(_)) { Clock::Server } else { Clock::Client };
+                budgets.push(Budget::new(scenario, &row, clock, &micros));
             }
         }
     }
@@ -169,8 +175,8 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     };
     let settings = Settings { reference, bootstrap: Bootstrap { reps: args.bootstrap, ..Bootstrap::default() } };
     let summaries = eval::summarise(&episodes, &settings).map_err(anyhow::Error::msg)?;
-    print!("{}", eval::markdown(&summaries));
-    write(&args, &summaries, &episodes)?;
+    print!("{}\n{}", eval::markdown(&summaries), budget::markdown(&budgets));
+    write(&args, &summaries, &episodes, &budgets)?;
     if args.opponents {
         write_crossplay(&args, &summaries)?;
     }
@@ -228,8 +234,10 @@ struct Slot {
 }
 
 impl Run<'_> {
-    /// Every episode of the run, in seed order, `args.batch` envs at a time.
-    fn episodes(&self, bar: &ProgressBar) -> anyhow::Result<Vec<Episode>> {
+    /// Every episode of the run, in seed order, `args.batch` envs at a time, and the
+    /// policy's decision time per agent and step (µs): the server's clock for a built-in
+    /// driver, this process's for `idle` and `random`.
+    fn episodes(&self, bar: &ProgressBar) -> anyhow::Result<(Vec<Episode>, Vec<f32>)> {
         let options = CreateOptions {
             overrides: self.overrides.iter().map(|(k, v)| (k.clone(), OptionValue::Str(v.clone()))).collect(),
             max_cycles: self.args.max_cycles,
@@ -249,21 +257,25 @@ impl Run<'_> {
                 .with_context(|| format!("creating an env of scenario '{}' for policy {}", self.scenario, self.name))?;
             envs.push(env);
         }
-        let mut done = Vec::new();
+        let (mut done, mut micros) = (Vec::new(), Vec::new());
         for first in (0..self.args.episodes).step_by(count as usize) {
             let size = count.min(self.args.episodes - first) as usize;
             let mut slots = Vec::with_capacity(size);
             for (k, env) in envs.drain(..size).enumerate() {
                 slots.push(self.reset(env, self.args.seed.wrapping_add(first + k as u64))?);
             }
-            done.extend(self.play(&mut slots, bar)?);
+            done.extend(self.play(&mut slots, bar, &mut micros)?);
             envs.extend(slots.into_iter().map(|slot| slot.env));
         }
         for mut env in envs {
+            if matches!(self.policy, Policy::Server(_)) {
+                let statistics = env.statistics().context("asking the server what its policy's decisions cost")?;
+                micros.extend(statistics.decision_micros.into_iter().flat_map(|(_, kept)| kept));
+            }
             env.close()?;
         }
         done.sort_by(|a, b| (a.seed, &a.agent).cmp(&(b.seed, &b.agent)));
-        Ok(done)
+        Ok((done, micros))
     }
 
     fn reset(&self, mut env: Env, seed: u64) -> anyhow::Result<Slot> {
@@ -273,15 +285,17 @@ impl Run<'_> {
         Ok(Slot { env, seed, random: ChaCha8Rng::seed_from_u64(seed), live })
     }
 
-    /// Steps every slot's episode to its end, all in one batch per step.
-    fn play(&self, slots: &mut [Slot], bar: &ProgressBar) -> anyhow::Result<Vec<Episode>> {
+    /// Steps every slot's episode to its end, all in one batch per step; adds the time
+    /// each client-side action took to `micros`.
+    fn play(&self, slots: &mut [Slot], bar: &ProgressBar, micros: &mut Vec<f32>) -> anyhow::Result<Vec<Episode>> {
         let mut done = Vec::new();
         loop {
             let mut playing: Vec<&mut Slot> = slots.iter_mut().filter(|slot| !slot.live.is_empty()).collect();
             if playing.is_empty() {
                 return Ok(done);
             }
-            let actions: Vec<Vec<(String, Action)>> = playing.iter_mut().map(|slot| self.actions(slot)).collect();
+            let actions: Vec<Vec<(String, Action)>> =
+                playing.iter_mut().map(|slot| self.actions(slot, micros)).collect();
             let mut envs: Vec<&mut Env> = playing.iter_mut().map(|slot| &mut slot.env).collect();
             let replies = self.client.step_batch(&mut envs, actions)?;
             for (slot, reply) in playing.into_iter().zip(replies) {
@@ -303,11 +317,13 @@ impl Run<'_> {
         }
     }
 
-    /// This step's actions of the slot's live agents; none when the server drives them.
-    fn actions(&self, slot: &mut Slot) -> Vec<(String, Action)> {
+    /// This step's actions of the slot's live agents, each timed into `micros`; none when
+    /// the server drives them.
+    fn actions(&self, slot: &mut Slot, micros: &mut Vec<f32>) -> Vec<(String, Action)> {
         let specs = slot.env.specs();
         let mut actions = Vec::with_capacity(slot.live.len());
         for agent in &slot.live {
+            let started = Instant::now();
             let space = specs.action_spaces.iter().find(|(a, _)| a == agent).map(|(_, s)| s);
             let action = match (self.policy, space) {
                 (Policy::Server(_), _) => continue,
@@ -318,6 +334,7 @@ impl Run<'_> {
                 }
                 (Policy::Random, _) => Action::Meta(slot.random.random_range(0..MetaAction::ALL.len() as u32)),
             };
+            micros.push(started.elapsed().as_secs_f32() * 1e6);
             actions.push((agent.clone(), action));
         }
         actions
@@ -325,7 +342,7 @@ impl Run<'_> {
 }
 
 /// Writes the tables and plots into `args.out`.
-fn write(args: &EvalArgs, summaries: &[Summary], episodes: &[Episode]) -> anyhow::Result<()> {
+fn write(args: &EvalArgs, summaries: &[Summary], episodes: &[Episode], budgets: &[Budget]) -> anyhow::Result<()> {
     let out = &args.out;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let save = |file: &str, text: String| -> anyhow::Result<PathBuf> {
@@ -334,6 +351,8 @@ fn write(args: &EvalArgs, summaries: &[Summary], episodes: &[Episode]) -> anyhow
         Ok(path)
     };
     save("results.md", markdown_document(args, summaries))?;
+    save("budget.md", budget::markdown(budgets))?;
+    save("budget.csv", budget::csv(budgets))?;
     save("results.csv", eval::csv(summaries))?;
     save("differences.csv", eval::differences_csv(summaries))?;
     save("episodes.csv", eval::episodes_csv(episodes))?;
@@ -373,12 +392,15 @@ fn write_crossplay(args: &EvalArgs, summaries: &[Summary]) -> anyhow::Result<()>
 fn written(out: &Path, scenarios: &[String]) -> String {
     let plots = if scenarios.len() == 1 { scenarios[0].clone() } else { "<scenario>".to_string() };
     format!(
-        "{0}/results.md, results.csv, differences.csv, episodes.csv, results.json, costs_{plots}.png, rates_{plots}.png",
+        "{0}/results.md, results.csv, differences.csv, episodes.csv, results.json, budget.md, budget.csv, \
+         costs_{plots}.png, rates_{plots}.png",
         out.display()
     )
 }
 
-/// results.md: the command's settings, the table, and what each column means.
+/// results.md: the command's settings, the table, and what each column means (the compute
+/// budget, wall time of this machine, is budget.md: results.md stays the same bits for
+/// the same seeds).
 fn markdown_document(args: &EvalArgs, summaries: &[Summary]) -> String {
     let mut text = format!(
         "# arena eval\n\n{} episodes per policy and scenario, seeds {}..{} (the same for every policy){}.\n\n",
@@ -399,5 +421,6 @@ fn markdown_document(args: &EvalArgs, summaries: &[Summary]) -> String {
     for figure in eval::FIGURES {
         text.push_str(&format!("- **{}**: {}\n", figure.heading, figure.what));
     }
+    text.push_str("\nWhat each policy's decisions cost per step on this machine: budget.md and budget.csv.\n");
     text
 }

@@ -85,7 +85,7 @@ pub fn run(args: PlayArgs) -> anyhow::Result<()> {
             infos = reply.steps.iter().map(|step| (step.agent.clone(), step.info.clone())).collect();
             live = reply.agents.clone();
             cycle += 1;
-            if let Frame::Ansi(text) = env.render(RenderMode::Ansi)? {
+            if let Frame::Ansi(text) = env.render(RenderMode::Ansi, None)? {
                 print!(
                     "\x1b[2J\x1b[H{} — episode {} step {cycle}/{}\n{text}",
                     args.scenario,

@@ -112,6 +112,20 @@ fn the_same_seeds_give_identical_tables() {
         let bytes = std::fs::read(first.join(plot)).expect("plot written");
         assert!(bytes.starts_with(b"\x89PNG"), "{plot} is a PNG");
     }
+    // The compute budget: the server's clock for the AV, this process's for the others,
+    // one sample per agent and step (merge-random: one learner, 200 steps at most).
+    let budget = std::fs::read_to_string(first.join("budget.csv")).expect("budget.csv written");
+    let rows: Vec<Vec<&str>> = budget.lines().skip(1).map(|line| line.split(',').collect()).collect();
+    let clocks: Vec<(&str, &str)> = rows.iter().map(|r| (r[1], r[2])).collect();
+    assert_eq!(clocks, [("expert", "server"), ("random", "client"), ("idle", "client")], "{budget}");
+    for row in &rows {
+        let steps: usize = row[3].parse().unwrap();
+        let (p50, p99): (f64, f64) = (row[4].parse().unwrap(), row[5].parse().unwrap());
+        // An idle action may take less than the clock's resolution; the AV's never does.
+        let timed = p50 > 0.0 || row[2] == "client";
+        assert!((3..=600).contains(&steps) && p50 >= 0.0 && timed && p99 >= p50, "{budget}");
+    }
+    assert!(std::fs::read_to_string(first.join("budget.md")).unwrap().contains("| expert | server |"));
 }
 
 #[test]

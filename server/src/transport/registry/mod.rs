@@ -162,8 +162,11 @@ impl Registry {
                 self.check_batch(&steps)?;
                 Ok(ReplyBody::StepBatch(self.step_batch(client, &steps)))
             }
-            RequestBody::Render { env, mode } => {
-                self.with_env(client, env, |slot| slot.env.render(mode).map(ReplyBody::Render))
+            RequestBody::Render { env, mode, follow } => {
+                self.with_env(client, env, |slot| slot.env.render(mode, follow.as_deref()).map(ReplyBody::Render))
+            }
+            RequestBody::Statistics { env } => {
+                self.with_env(client, env, |slot| Ok(ReplyBody::Statistics(slot.env.statistics())))
             }
             RequestBody::State { env } => self.with_env(client, env, |slot| slot.env.state().map(ReplyBody::State)),
             RequestBody::Specs { env } => self.with_env(client, env, |slot| Ok(ReplyBody::Specs(slot.env.specs()))),

@@ -73,8 +73,34 @@ def test_a_snapshot_of_another_scenario_or_damaged_is_refused():
         highway.restore(snapshot)
     with pytest.raises(highway_arena.SnapshotError, match="truncated"):
         merge.restore(snapshot[:-5])
-    with pytest.raises(highway_arena.SnapshotError, match="protocol version 9"):
-        merge.restore(snapshot[:8] + b"\x09\x00" + snapshot[10:])
+    other = highway_arena._core.PROTOCOL_VERSION + 1
+    with pytest.raises(highway_arena.SnapshotError, match=f"protocol version {other}"):
+        merge.restore(snapshot[:8] + other.to_bytes(2, "little") + snapshot[10:])
     for env in (merge, highway):
         env.step({agent: 1 for agent in env.agents})
         env.close()
+
+
+def test_an_env_of_a_batch_or_vector_env_restores_bit_for_bit():
+    batch = highway_arena.batch_env("merge-random", num_envs=2)
+    batch.reset(seed=0)
+    for _ in range(10):
+        batch.step([{"ec_0": 3}, {"ec_0": 1}])
+    saved = batch.snapshot(1)
+    after = [pickle.dumps(batch.step([{"ec_0": 1}, {"ec_0": a}])[1]) for a in (3, 1, 0, 1, 4)]
+    batch.restore(1, saved)
+    again = [pickle.dumps(batch.step([{"ec_0": 1}, {"ec_0": a}])[1]) for a in (3, 1, 0, 1, 4)]
+    assert after == again
+    with pytest.raises(IndexError, match="env index 2 out of range"):
+        batch.snapshot(2)
+    batch.close()
+
+    vector = highway_arena.vector_env("merge-random", num_envs=2)
+    vector.reset(seed=0)
+    vector.step(np.array([1, 3]))
+    saved = vector.snapshot(0)
+    first = [vector.step(np.array([a, 1]))[0][0].tobytes() for a in (3, 1, 4)]
+    observation, _ = vector.restore(0, saved)
+    second = [vector.step(np.array([a, 1]))[0][0].tobytes() for a in (3, 1, 4)]
+    assert first == second and observation.shape == vector.single_observation_space.shape
+    vector.close()

@@ -4,6 +4,7 @@ control period, every agent's rows, and the values the env reported at a known t
 recording starts mid-episode and stops; episodes follow one another on the timeline;
 ``python -m highway_arena.view --summary`` reads the file without a server."""
 
+import pathlib
 import subprocess
 import sys
 
@@ -239,3 +240,34 @@ def test_play_drives_a_trained_policy_into_a_recording_the_same_as_stepping_by_h
     assert highway_arena.play("expert", "merge", max_cycles=5)[0]["ec_0"] != 0.0
     with pytest.raises(TypeError, match="policy must be"):
         highway_arena.play(42, "merge")
+
+
+def test_batch_and_vector_envs_record_each_env_into_its_own_file(tmp_path):
+    # merge with max_cycles 4: every env ends its first episode on the 4th step and is
+    # reset by the batch (auto-reset), so each file holds two episodes.
+    batch = highway_arena.batch_env("merge-random", num_envs=2, max_cycles=4, record=tmp_path / "batch")
+    batch.reset(seed=3)
+    for _ in range(6):
+        batch.step([{"ec_0": IDLE}, {"ec_0": IDLE}])
+    paths = batch.stop_recording()
+    batch.step([{"ec_0": IDLE}, {"ec_0": IDLE}])  # no longer recorded
+    batch.close()
+    assert [pathlib.Path(p).name for p in paths] == ["env-000.rrd", "env-001.rrd"]
+    for i, path in enumerate(paths):
+        held = view.summary(path)
+        assert held["episodes"] == 2 and held["vehicles"] == ["ac", "ec_0"]
+        # The reset's frame and 4 steps, then the second episode's reset and 2 steps.
+        assert held["frames"] == 1 + 4 + 1 + 2, path
+        seeds = table(path)["/episode:seed"].dropna().map(lambda v: int(v[0])).tolist()
+        assert seeds[0] == 3 + i, "env i is seeded seed + i"
+
+    vector = highway_arena.vector_env("merge-random", num_envs=2, max_cycles=4)
+    vector.reset(seed=5)
+    vector.start_recording(tmp_path / "vector")
+    for _ in range(3):
+        vector.step(np.array([IDLE, IDLE]))
+    paths = vector.stop_recording()
+    vector.close()
+    for path in paths:
+        held = view.summary(path)
+        assert (held["episodes"], held["frames"]) == (1, 1 + 3), "begun after the reset: the world then, 3 steps"

@@ -7,6 +7,7 @@ from __future__ import annotations
 from . import _convert, _core
 from ._connection import ENV_OPTIONS, Connection, keywords, split, takes_connection_keywords
 from ._errors import InvalidActionError, translate, translated
+from ._recordings import EnvRecordings, recording_meta
 from .parallel import reset_options, scenario_overrides
 
 
@@ -16,10 +17,13 @@ class BatchEnv:
     from its own stream when its episode ends. Takes ``parallel_env``'s env options
     (``action_type``, ``observation``, ``expert``, ``policy``, ``max_cycles``, ...),
     ``scenario_text``, scenario overrides (``overrides={"vehicle.ac.speed": 18.0}`` or
-    ``vehicle__ac__speed=18.0``) and the connection keywords (below); any other keyword
+    ``vehicle__ac__speed=18.0``), ``record`` (a folder: record every env from the start,
+    as ``start_recording`` does) and the connection keywords (below); any other keyword
     raises TypeError naming it and the valid ones."""
 
-    def __init__(self, scenario="highway", num_envs=8, connect=None, *, scenario_text=None, overrides=None, **kwargs):
+    def __init__(
+        self, scenario="highway", num_envs=8, connect=None, *, scenario_text=None, overrides=None, record=None, **kwargs
+    ):
         connection, rest = split(kwargs, connect=connect)
         options = {name: rest.pop(name) for name in ENV_OPTIONS if name in rest}
         overrides = scenario_overrides(overrides, rest, "batch_env()", KEYWORDS)
@@ -38,6 +42,10 @@ class BatchEnv:
         self.dt = specs["dt"]
         self.action_spaces = {a: _convert.space(s) for a, s in specs["action_spaces"].items()}
         self.num_envs = num_envs
+        self._scenario = scenario
+        self._recordings = None
+        if record is not None:
+            self.start_recording(record)
 
     @translated
     def reset(self, seed=0, options=None):
@@ -47,6 +55,8 @@ class BatchEnv:
         out = []
         for i, env in enumerate(self._envs):
             observations, infos = env.reset(seed + i, wire)
+            if self._recordings is not None:
+                self._recordings.reset(i, seed + i, infos)
             out.append(({a: _convert.observation(o) for a, o in observations.items()}, infos))
         return out
 
@@ -65,15 +75,52 @@ class BatchEnv:
             wire.append({agent: _convert.action(a, self.action_spaces[agent], agent) for agent, a in per_env.items()})
         results = self._connection.client.step_batch(self._envs, wire)
         out = []
-        for env, result in zip(self._envs, results):
+        for i, (env, result) in enumerate(zip(self._envs, results)):
             if isinstance(result, _core.ArenaError):
                 raise translate(result)
             observations, rewards, terminations, truncations, infos, agents = result
+            if self._recordings is not None:
+                self._recordings.step(i, wire[i], rewards, terminations, truncations, infos)
             if not agents:
-                observations, _ = env.reset(None, None)
+                observations, first_infos = env.reset(None, None)
+                if self._recordings is not None:
+                    self._recordings.reset(i, None, first_infos)
             observations = {a: _convert.observation(o) for a, o in observations.items()}
             out.append((observations, rewards, terminations, truncations, infos))
         return out
+
+    @translated
+    def snapshot(self, i) -> bytes:
+        """Env ``i``'s whole state as bytes (``ParallelEnv.snapshot``)."""
+        return bytes(self._envs[self._index(i)].snapshot())
+
+    @translated
+    def restore(self, i, snapshot):
+        """Puts ``snapshot`` into env ``i`` (``ParallelEnv.restore``); returns its
+        (observations, infos)."""
+        index = self._index(i)
+        observations, infos = self._envs[index].restore(bytes(snapshot))
+        if self._recordings is not None:
+            self._recordings.reset(index, None, infos)
+        return {a: _convert.observation(o) for a, o in observations.items()}, infos
+
+    def _index(self, i) -> int:
+        if not 0 <= int(i) < len(self._envs):
+            raise IndexError(f"env index {i} out of range: this batch has {len(self._envs)} envs")
+        return int(i)
+
+    def start_recording(self, folder):
+        """Records every env from now on, env ``i`` into ``<folder>/env-<i>.rrd`` (000, 001,
+        ...), each as ``ParallelEnv.start_recording`` records one (docs/viewing.md)."""
+        if self._recordings is not None:
+            raise RuntimeError("this batch is recording already: stop_recording() first")
+        meta = recording_meta(self._scenario, self.dt, self.possible_agents)
+        self._recordings = EnvRecordings(self._envs, folder, meta)
+
+    def stop_recording(self) -> list:
+        """Ends the recordings (the files are complete then); returns their paths."""
+        recordings, self._recordings = self._recordings, None
+        return [] if recordings is None else recordings.close()
 
     @property
     def servers(self):
@@ -82,6 +129,9 @@ class BatchEnv:
         return [env.server for env in self._envs]
 
     def close(self):
+        recordings, self._recordings = getattr(self, "_recordings", None), None
+        if recordings is not None:
+            recordings.close(envs_open=False)
         for env in self._envs:
             translated(env.close)()
         self._envs = []

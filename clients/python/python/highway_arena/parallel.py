@@ -6,9 +6,10 @@ import gymnasium
 import numpy as np
 from pettingzoo import ParallelEnv as _ParallelEnv
 
-from . import _convert, _core
+from . import _convert
 from ._connection import Connection, keywords, split, takes_connection_keywords
 from ._errors import InvalidActionError, ScenarioError, translated
+from ._recordings import recording_meta
 
 RENDER_MODES = ["human", "rgb_array", "ansi"]
 
@@ -257,13 +258,7 @@ class ParallelEnv(_ParallelEnv):
     def _new_recording(self, path=None, **where):
         from .recording import Recording  # rerun-sdk is an optional extra
 
-        meta = {
-            "protocol": _core.PROTOCOL_VERSION,
-            "scenario": self._scenario,
-            "step_dt": float(self.dt),
-            "agents": list(self.possible_agents),
-        }
-        return Recording(path, meta=meta, **where)
+        return Recording(path, meta=recording_meta(self._scenario, self.dt, self.possible_agents), **where)
 
     @translated
     def start_recording(self, path=None, *, spawn=False, serve=False, web_port=9090, grpc_port=9876):

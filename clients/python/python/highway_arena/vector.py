@@ -16,6 +16,7 @@ from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 from . import _convert, _core
 from ._connection import ENV_OPTIONS, Connection, keywords, split, takes_connection_keywords
 from ._errors import translate, translated
+from ._recordings import EnvRecordings, recording_meta
 from .parallel import reset_options, scenario_overrides
 
 
@@ -25,8 +26,9 @@ class VectorEnv(gymnasium.vector.VectorEnv):
     other learners' vehicles are driven by IDM, as in ``gym_env``). Takes
     ``parallel_env``'s env options (``action_type``, ``observation``, ``expert``,
     ``max_cycles``, ...), ``scenario_text``, scenario overrides (``overrides=`` or
-    ``vehicle__ac__speed=18.0``), ``autoreset_mode`` and the connection keywords (below);
-    any other keyword raises TypeError naming it and the valid ones. ``reset(seed=s)``
+    ``vehicle__ac__speed=18.0``), ``autoreset_mode``, ``record`` (a folder: record every
+    sub-env from the start, as ``start_recording`` does) and the connection keywords
+    (below); any other keyword raises TypeError naming it and the valid ones. ``reset(seed=s)``
     seeds sub-env ``i`` with ``s + i``; a list gives each its own seed."""
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -41,6 +43,7 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         scenario_text=None,
         overrides=None,
         autoreset_mode=AutoresetMode.NEXT_STEP,
+        record=None,
         **kwargs,
     ):
         connection, rest = split(kwargs, connect=connect)
@@ -83,6 +86,43 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         self.dt = specs["dt"]
         self._observations = create_empty_array(self.single_observation_space, self.num_envs)
         self._autoreset = np.zeros(self.num_envs, dtype=np.bool_)
+        self._meta = recording_meta(scenario, self.dt, [self.agent])
+        self._recordings = None
+        if record is not None:
+            self.start_recording(record)
+
+    def start_recording(self, folder):
+        """Records every sub-env from now on, env ``i`` into ``<folder>/env-<i>.rrd`` (000,
+        001, ...), each as ``ParallelEnv.start_recording`` records one (docs/viewing.md)."""
+        if self._recordings is not None:
+            raise RuntimeError("this vector env is recording already: stop_recording() first")
+        self._recordings = EnvRecordings(self._envs, folder, self._meta)
+
+    def stop_recording(self) -> list:
+        """Ends the recordings (the files are complete then); returns their paths."""
+        recordings, self._recordings = self._recordings, None
+        return [] if recordings is None else recordings.close()
+
+    @translated
+    def snapshot(self, i) -> bytes:
+        """Sub-env ``i``'s whole state as bytes (``ParallelEnv.snapshot``)."""
+        return bytes(self._envs[self._index(i)].snapshot())
+
+    @translated
+    def restore(self, i, snapshot):
+        """Puts ``snapshot`` into sub-env ``i`` (``ParallelEnv.restore``); returns its
+        (observation, info). Its next ``step`` continues from there."""
+        index = self._index(i)
+        observations, infos = self._envs[index].restore(bytes(snapshot))
+        self._autoreset[index] = False
+        if self._recordings is not None:
+            self._recordings.reset(index, None, infos)
+        return _convert.observation(observations[self.agent]), infos[self.agent]
+
+    def _index(self, i) -> int:
+        if not 0 <= int(i) < self.num_envs:
+            raise IndexError(f"env index {i} out of range: this vector env has {self.num_envs} envs")
+        return int(i)
 
     def _seeds(self, seed):
         if seed is None:
@@ -102,6 +142,7 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         observations, infos = [], {}
         for i, (env, env_seed) in enumerate(zip(self._envs, seeds)):
             obs, info = env.reset(env_seed, wire)
+            self._record_reset(i, env_seed, info)
             observations.append(_convert.observation(obs[self.agent]))
             infos = self._add_info(infos, info[self.agent], i)
         self._autoreset[:] = False
@@ -118,10 +159,12 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         terminations = np.zeros(self.num_envs, dtype=np.bool_)
         truncations = np.zeros(self.num_envs, dtype=np.bool_)
         infos = {}
-        for i, result in zip(stepping, results):
+        for i, sent, result in zip(stepping, wire, results):
             if isinstance(result, _core.ArenaError):
                 raise translate(result)
             obs, reward, terminated, truncated, info, _agents = result
+            if self._recordings is not None:
+                self._recordings.step(i, sent, reward, terminated, truncated, info)
             observations[i] = _convert.observation(obs[self.agent])
             rewards[i] = reward[self.agent]
             terminations[i] = terminated[self.agent]
@@ -129,16 +172,22 @@ class VectorEnv(gymnasium.vector.VectorEnv):
             if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and (terminations[i] or truncations[i]):
                 infos = self._add_info(infos, {"final_obs": observations[i], "final_info": info[self.agent]}, i)
                 obs, info = self._envs[i].reset(None, {})
+                self._record_reset(i, None, info)
                 observations[i] = _convert.observation(obs[self.agent])
             infos = self._add_info(infos, info[self.agent], i)
         for i in range(self.num_envs):
             if self._autoreset[i]:
                 obs, info = self._envs[i].reset(None, {})
+                self._record_reset(i, None, info)
                 observations[i] = _convert.observation(obs[self.agent])
                 infos = self._add_info(infos, info[self.agent], i)
         if self.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP:
             self._autoreset = terminations | truncations
         return self._batch(observations), rewards, terminations, truncations, infos
+
+    def _record_reset(self, i, seed, infos):
+        if self._recordings is not None:
+            self._recordings.reset(i, seed, infos)
 
     def _batch(self, observations):
         return concatenate(self.single_observation_space, observations, self._observations).copy()
@@ -150,6 +199,9 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         return [env.server for env in self._envs]
 
     def close_extras(self, **kwargs):
+        recordings, self._recordings = getattr(self, "_recordings", None), None
+        if recordings is not None:
+            recordings.close(envs_open=False)
         for env in getattr(self, "_envs", []):
             translated(env.close)()
         self._envs = []

@@ -21,6 +21,22 @@ fn free_port() -> u16 {
     listener.local_addr().expect("local address").port()
 }
 
+/// A session in `mode` listening on a free 127.0.0.1 port, and its endpoint. A port free
+/// a moment ago can be taken before Zenoh binds it (by another test's outgoing
+/// connection, whose local port comes from the same range): then another is tried.
+async fn listening(mode: Mode) -> (zenoh::Session, String) {
+    for _ in 0..10 {
+        let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+        let flags = ConnectionFlags { mode: Some(mode), listen: vec![endpoint.clone()], ..ConnectionFlags::default() };
+        match zenoh::open(flags.zenoh_config(Role::Server).expect("config")).await {
+            Ok(session) => return (session, endpoint),
+            Err(error) if error.to_string().contains("Address already in use") => continue,
+            Err(error) => panic!("open a session listening on {endpoint}: {error}"),
+        }
+    }
+    panic!("ten free ports were taken before Zenoh could bind them")
+}
+
 pub async fn start() -> Harness {
     start_with(Limits::default()).await
 }
@@ -38,9 +54,7 @@ pub async fn start_router() -> Harness {
 /// A plain Zenoh router, and a server connected to it as a Zenoh client; `endpoint` is
 /// the router's, so every other session is as near the server as the server's own.
 pub async fn start_behind_router() -> Harness {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let listen = ConnectionFlags { mode: Some(Mode::Router), listen: vec![endpoint.clone()], ..Default::default() };
-    let router = zenoh::open(listen.zenoh_config(Role::Server).expect("config")).await.expect("open the router");
+    let (router, endpoint) = listening(Mode::Router).await;
     let connect = ConnectionFlags { mode: Some(Mode::Client), ..ConnectionFlags::connecting_to(&endpoint) };
     let session = zenoh::open(connect.zenoh_config(Role::Server).expect("config")).await.expect("open server session");
     let scenarios = Scenarios::load(None).expect("the built-in scenarios load");
@@ -49,9 +63,7 @@ pub async fn start_behind_router() -> Harness {
 }
 
 async fn start_as(mode: Mode, limits: Limits) -> Harness {
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
-    let flags = ConnectionFlags { mode: Some(mode), listen: vec![endpoint.clone()], ..ConnectionFlags::default() };
-    let session = zenoh::open(flags.zenoh_config(Role::Server).expect("config")).await.expect("open server session");
+    let (session, endpoint) = listening(mode).await;
     let scenarios = Scenarios::load(None).expect("the built-in scenarios load");
     let server = Server::start(session, "arena", scenarios, limits).await.expect("start server");
     Harness { server, endpoint, router: None }

@@ -53,6 +53,7 @@ def main() -> None:
             policies, [args.scenario], episodes=args.episodes, seed=args.seed, connect=connect, out=args.out
         )
         print(result.markdown)
+        print(result.budget_markdown)
         print(f"written to {args.out}")
 
     with highway_arena.serving(args.connect) as connect:

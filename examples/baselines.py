@@ -48,7 +48,13 @@ def main() -> None:
         for path in args.ppo:
             from stable_baselines3 import PPO
 
-            policies[f"ppo ({pathlib.Path(path).stem})"] = PPO.load(path, device="cpu")
+            from highway_arena.sb3 import sampled
+
+            # As trained and as the league plays it (sampled, seeded), and by its most
+            # likely action (docs/baselines.md, "PPO").
+            model = PPO.load(path, device="cpu")
+            policies[f"ppo ({pathlib.Path(path).stem})"] = sampled(model, seed=0)
+            policies[f"ppo argmax ({pathlib.Path(path).stem})"] = model
         result = highway_arena.evaluate(
             policies, [args.scenario], episodes=args.episodes, seed=args.seed, connect=connect, out=args.out
         )

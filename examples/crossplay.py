@@ -4,6 +4,7 @@ docs/baselines.md shows ("Cross-play"). A PPO checkpoint joins with --ppo.
 
     python examples/crossplay.py                                   # merge-random and overtake-random, 50 episodes
     python examples/crossplay.py --scenario merge-random --episodes 10 --ppo ppo-merge-random.zip
+    python examples/crossplay.py --ppo 'league/ppo-{scenario}.zip'   # each scenario's own checkpoint
 
 Writes out/crossplay/<scenario>/ (crossplay.md, heatmaps, the usual tables) and prints
 the matrices.
@@ -25,7 +26,7 @@ def main() -> None:
     parser.add_argument("--connect", help="endpoint of a running arena-server (default: launch one)")
     parser.add_argument("--scenario", action="append", help="scenario (repeatable; default merge-random and overtake-random)")
     parser.add_argument("--episodes", type=int, default=50, help="episodes per cell (default 50)")
-    parser.add_argument("--ppo", help="a Stable-Baselines3 PPO checkpoint to add (needs stable-baselines3)")
+    parser.add_argument("--ppo", help="a Stable-Baselines3 PPO checkpoint to add, {scenario} replaced by the scenario's name (needs stable-baselines3)")
     parser.add_argument("--out", default="out/crossplay", help="folder for the results (default out/crossplay)")
     args = parser.parse_args()
     if args.episodes < 1:
@@ -39,7 +40,10 @@ def main() -> None:
             if args.ppo:
                 from stable_baselines3 import PPO
 
-                policies["ppo"] = PPO.load(args.ppo, device="cpu")
+                from highway_arena.sb3 import sampled
+
+                # Sampled from its action distribution, seeded, as the league plays it.
+                policies["ppo"] = sampled(PPO.load(args.ppo.format(scenario=scenario), device="cpu"), seed=0)
             result = highway_arena.evaluate(
                 policies, scenario, episodes=args.episodes, connect=connect, opponents=True,
                 out=str(pathlib.Path(args.out) / scenario),

@@ -48,7 +48,11 @@ def learned(folder: pathlib.Path, scenario: str) -> dict:
     if ppo.exists():
         from stable_baselines3 import PPO
 
-        policies["ppo"] = PPO.load(ppo, device="cpu")
+        from highway_arena.sb3 import sampled
+
+        # Played as trained: actions sampled from its distribution, seeded (its most
+        # likely action crashes on overtake-random; docs/baselines.md, "PPO").
+        policies["ppo"] = sampled(PPO.load(ppo, device="cpu"), seed=0)
     return policies
 
 

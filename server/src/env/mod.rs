@@ -107,6 +107,8 @@ struct StepScratch {
     applied: Vec<bool>,
     live_before: Vec<usize>,
     driving_before: Vec<bool>,
+    /// Per live agent, whether it was at the scenario's goal before the step.
+    reached_before: Vec<bool>,
     vehicles: Vec<VehicleId>,
     costs: Vec<simulate::StepCost>,
     /// Per live agent, the acceleration commanded in each control period of the step.
@@ -376,7 +378,8 @@ impl Env {
     /// and notes who was live and driving before the step.
     fn apply_actions(&mut self) {
         let Some(world) = self.world.as_mut() else { return };
-        let StepScratch { chosen, applied, live_before, driving_before, vehicles, .. } = &mut self.scratch;
+        let StepScratch { chosen, applied, live_before, driving_before, reached_before, vehicles, .. } =
+            &mut self.scratch;
         applied.clear();
         applied.resize(self.agents.len(), true);
         for ((agent, action), applied) in self.agents.iter().zip(chosen.iter()).zip(applied.iter_mut()) {
@@ -389,6 +392,8 @@ impl Env {
         driving_before.clear();
         driving_before
             .extend(live_before.iter().map(|&i| world.vehicle(self.agents[i].vehicle).status == Status::Driving));
+        reached_before.clear();
+        reached_before.extend(live_before.iter().map(|&i| self.episode.goal.reached(world, self.agents[i].vehicle)));
         vehicles.clear();
         vehicles.extend(live_before.iter().map(|&i| self.agents[i].vehicle));
     }
@@ -480,7 +485,11 @@ impl Env {
         let vehicle = world.vehicle(agent.vehicle);
         let crashed_now = self.scratch.driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
         let ended = episode::ended(world, agent.vehicle);
-        let reward = reward::reward(&self.episode.reward, self.max_cycles, &cost, agent.aim, crashed_now);
+        let goal = reward::GoalChange {
+            before: self.scratch.reached_before[k],
+            after: self.episode.goal.reached(world, agent.vehicle),
+        };
+        let reward = reward::reward(&self.episode.reward, self.max_cycles, &cost, agent.aim, crashed_now, goal);
         let stats = agent.stats.get_or_insert_with(|| episode::EpisodeStats::start(world, agent.vehicle, periods));
         stats.record(world, agent.vehicle, self.scratch.started, reward, &cost);
         stats.record_accels(&self.scratch.accels[k], world.params().control_dt);

@@ -176,7 +176,7 @@ fn info<'a>(step: &'a AgentStep, key: &str) -> Option<&'a InfoValue> {
 }
 
 #[test]
-fn reward_maps_the_cost_into_the_unit_interval_and_a_crash_earns_eleven_times_minus_the_episode_length() {
+fn reward_maps_the_cost_into_the_unit_interval_and_a_crash_earns_the_default_crash_reward() {
     let mut env = env("merge", CreateOptions::default());
     env.reset(Some(0), NO_OPTIONS).unwrap();
     let step = &env.step(&[]).unwrap()[0];
@@ -208,7 +208,8 @@ fn reward_maps_the_cost_into_the_unit_interval_and_a_crash_earns_eleven_times_mi
     }
     let last = last.expect("the episode ended");
     assert_eq!(last.info.end_reason(), Some(EndReason::Collision), "{:?}", last.info);
-    assert_eq!(last.reward, -2200.0, "merge.toml runs 200 steps: -(1 + the risk weight 10) x 200");
+    let bonus = arena_sim::RewardSpec::DEFAULT_GOAL_BONUS;
+    assert_eq!(last.reward, -2200.0 - 2.0 * bonus, "200 steps: -((1 + the risk weight 10) x 200 + 2 x the goal bonus)");
 }
 
 #[test]
@@ -223,7 +224,8 @@ fn driving_past_the_end_of_the_lane_ends_with_lane_end_and_time_limits_with_time
     });
     let ended = ended.expect("the lane ends within 400 steps");
     assert_eq!(ended.info.end_reason(), Some(EndReason::LaneEnd));
-    assert_eq!(ended.reward, -4400.0, "-(1 + 10) x 400");
+    let bonus = arena_sim::RewardSpec::DEFAULT_GOAL_BONUS;
+    assert_eq!(ended.reward, -4400.0 - 2.0 * bonus, "-((1 + 10) x 400 + 2 x the goal bonus)");
     let mut short = env_with_cycles("highway", 2);
     short.reset(Some(0), NO_OPTIONS).unwrap();
     short.step(&[]).unwrap();
@@ -449,13 +451,20 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
                             step.info.end_reason(),
                             Some(EndReason::Collision | EndReason::OffRoad | EndReason::LaneEnd)
                         );
-                        // The defaults: a step in [-risk weight, 1], a crash at -(1 + 10) x max_cycles.
+                        // The defaults: a step in [-risk weight - goal bonus, 1 + goal bonus], a
+                        // crash at -((1 + risk weight) x max_cycles + 2 x goal bonus); the bonus
+                        // is the scenario's (overtake's 50), 0 on one without a goal (the highways).
                         let weight = arena_sim::RewardSpec::DEFAULT_RISK_WEIGHT;
+                        let bonus = env.scenario.reward.goal_bonus;
+                        let has_goal = !(env.scenario.goal.lanes.is_empty() && env.scenario.goal.ahead_of.is_empty());
+                        assert!(has_goal || bonus == 0.0, "{name}: bonus {bonus} without a goal");
                         if ended_badly {
-                            assert_eq!(step.reward, -11.0 * f64::from(max_cycles), "{name}: {:?}", step.info);
+                            let crash = -((1.0 + weight) * f64::from(max_cycles) + 2.0 * bonus);
+                            assert_eq!(step.reward, crash, "{name}: {:?}", step.info);
                             crashed = true;
                         } else {
-                            assert!(step.reward >= -weight && step.reward <= 1.0, "{name}: reward {}", step.reward);
+                            let (low, high) = (-weight - bonus, 1.0 + bonus);
+                            assert!(step.reward >= low && step.reward <= high, "{name}: reward {}", step.reward);
                         }
                         total += step.reward;
                         if step.terminated || step.truncated {
@@ -472,12 +481,13 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
     }
 }
 
-/// The mean return over seeds 0..10 of overtake-random of a learner that changes into the
-/// left lane at once, beside the cars there, and then only speeds up (what PPO learned
-/// under the reward without risk), and of the AV (`expert`) in its place.
-fn squeezer_and_av_returns(risk_weight: Option<f64>) -> (f64, f64) {
+/// The mean return over seeds 0..10 of overtake-random (with `reward` overrides) of a
+/// learner that changes into the left lane at once, beside the cars there, and then only
+/// speeds up (what PPO learned under the reward without risk), and of the AV (`expert`)
+/// in its place.
+fn squeezer_and_av_returns(reward: &[(&str, f64)]) -> (f64, f64) {
     let overrides: Vec<(String, OptionValue)> =
-        risk_weight.map(|w| ("reward.risk_weight".to_string(), OptionValue::Float(w))).into_iter().collect();
+        reward.iter().map(|&(key, value)| (key.to_string(), OptionValue::Float(value))).collect();
     let mut returns = [0.0; 2];
     let expert = arena_protocol::BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Stackelberg };
     for (k, policy) in [None, Some(expert)].into_iter().enumerate() {
@@ -502,11 +512,49 @@ fn squeezer_and_av_returns(risk_weight: Option<f64>) -> (f64, f64) {
 
 #[test]
 fn passing_cars_side_by_side_returns_less_than_the_av_under_the_default_reward() {
-    let (squeezer, av) = squeezer_and_av_returns(None);
+    // The figures of docs/rewards.md ("Risk", "Goal"): `-- --nocapture` prints them.
+    let (squeezer, av) = squeezer_and_av_returns(&[]);
+    eprintln!("default reward (goal bonus 50): squeezing {squeezer:.1}, the AV {av:.1}");
     assert!(squeezer < av, "squeezing beside cars returns {squeezer}, the AV {av}");
     // Without the risk term the squeeze out-earns the AV, as PPO found (docs/rewards.md).
-    let (squeezer, av) = squeezer_and_av_returns(Some(0.0));
+    let (squeezer, av) = squeezer_and_av_returns(&[("reward.risk_weight", 0.0)]);
+    eprintln!("risk weight 0: squeezing {squeezer:.1}, the AV {av:.1}");
     assert!(squeezer > av + 50.0, "without risk: squeezing {squeezer}, the AV {av}");
+    // The goal bonus is paid to both when both pass; the AV passes in fewer of these
+    // episodes than the squeeze (it waits behind the slow car when no gap opens), so a
+    // bonus of 100 would hand the squeeze the lead again: overtake-random's 50 keeps it.
+    for bonus in [0.0, 100.0] {
+        let (squeezer, av) = squeezer_and_av_returns(&[("reward.goal_bonus", bonus)]);
+        eprintln!("goal bonus {bonus}: squeezing {squeezer:.1}, the AV {av:.1}");
+        assert_eq!(squeezer < av, bonus < 100.0, "goal bonus {bonus}: squeezing {squeezer}, the AV {av}");
+    }
+}
+
+#[test]
+fn the_goal_bonus_is_paid_once_on_the_step_the_goal_is_reached() {
+    // The AV drives the learner's car on merge: it merges into lane 0 (the goal) once.
+    let rewards = |bonus: f64| {
+        let gt = arena_protocol::BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Stackelberg };
+        let overrides = vec![("reward.goal_bonus".to_string(), OptionValue::Float(bonus))];
+        let mut env = env("merge", CreateOptions { policy: Some(gt), overrides, ..CreateOptions::default() });
+        env.reset(Some(0), NO_OPTIONS).unwrap();
+        let mut rewards = Vec::new();
+        loop {
+            let step = env.step(&[]).unwrap().remove(0);
+            rewards.push(step.reward);
+            if step.terminated || step.truncated {
+                return (rewards, step.info.clone());
+            }
+        }
+    };
+    let ((without, _), (with, info)) = (rewards(0.0), rewards(30.0));
+    assert_eq!(figure(&info, arena_protocol::info::EPISODE_SUCCESS), InfoValue::Bool(true));
+    let paid: Vec<(usize, f64)> =
+        with.iter().zip(&without).map(|(a, b)| a - b).enumerate().filter(|(_, d)| *d != 0.0).collect();
+    assert_eq!(paid.len(), 1, "{paid:?}");
+    assert!((paid[0].1 - 30.0).abs() < 1e-9, "{paid:?}");
+    // Paid on the step the car enters lane 0, not at the start or the end.
+    assert!(paid[0].0 > 0 && paid[0].0 + 1 < with.len(), "{paid:?}");
 }
 
 #[test]

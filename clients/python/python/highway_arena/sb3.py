@@ -79,3 +79,42 @@ class SB3VecEnv(VecEnv):
 def vec_env(scenario="highway", num_envs=8, **kwargs) -> SB3VecEnv:
     """An SB3 VecEnv of ``num_envs`` copies of ``scenario`` (``vector_env``'s options)."""
     return SB3VecEnv(VectorEnv(scenario, num_envs=num_envs, autoreset_mode=AutoresetMode.SAME_STEP, **kwargs))
+
+
+class Sampled:
+    """An SB3 model as a policy that samples its actions from the model's own action
+    distribution (what it trained with) with a seeded generator, instead of taking the
+    most likely action (``predict(deterministic=True)``, what ``evaluate`` does with a
+    model). A PPO policy trained with an entropy bonus stays spread, and its most likely
+    action can drive differently from the policy it learned: on overtake-random the
+    argmax of the league's PPO crashed in every episode while its sampled policy passed
+    (docs/baselines.md, "PPO"). The same ``seed`` and the same observations in the same
+    order give the same actions. Discrete and Box action spaces."""
+
+    def __init__(self, model, seed: int = 0):
+        self.model = model
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, observation):
+        import torch
+
+        policy = self.model.policy
+        tensor, _ = policy.obs_to_tensor(observation)
+        with torch.no_grad():
+            distribution = policy.get_distribution(tensor).distribution
+        if isinstance(distribution, torch.distributions.Categorical):
+            probs = distribution.probs.cpu().numpy()[0].astype(np.float64)
+            return int(self.rng.choice(len(probs), p=probs / probs.sum()))
+        mean = distribution.mean.cpu().numpy()[0]
+        std = distribution.stddev.cpu().numpy()[0]
+        action = self.rng.normal(mean, std).astype(np.float32)
+        space = self.model.action_space
+        if policy.squash_output:
+            return np.tanh(action)
+        return np.clip(action, space.low, space.high)
+
+
+def sampled(model, seed: int = 0) -> Sampled:
+    """``model`` (Stable-Baselines3) as a callable observation -> action that samples
+    from its action distribution with a generator seeded by ``seed`` (``Sampled``)."""
+    return Sampled(model, seed)

@@ -43,6 +43,7 @@ pub(super) struct GoalFile {
 pub(super) struct RewardFile {
     pub(super) cost_scale: f64,
     pub(super) risk_weight: f64,
+    pub(super) goal_bonus: f64,
     pub(super) crash: Option<f64>,
 }
 
@@ -51,6 +52,7 @@ impl Default for RewardFile {
         RewardFile {
             cost_scale: RewardSpec::DEFAULT_COST_SCALE,
             risk_weight: RewardSpec::DEFAULT_RISK_WEIGHT,
+            goal_bonus: RewardSpec::DEFAULT_GOAL_BONUS,
             crash: None,
         }
     }

@@ -104,9 +104,14 @@ pub struct RewardSpec {
     /// time to collision, a 0.5 s headway and 1 m of sideways clearance): a step earns
     /// J_0 / (J_0 + J) x progress - risk_weight x risk. 0 turns the term off.
     pub risk_weight: f64,
+    /// What reaching the scenario's goal (`Goal::reached`) is worth: paid on the step an
+    /// agent reaches it, taken back on a step that leaves it (potential-based shaping, Ng
+    /// et al. 1999: over an episode it sums to goal_bonus x (reached at the end - reached
+    /// at the start), whatever the path). 0 turns it off.
+    pub goal_bonus: f64,
     /// The reward of the step an agent crashes or leaves the road; `None`: minus
-    /// (1 + risk_weight) times the episode length in steps, below any episode without a
-    /// crash.
+    /// ((1 + risk_weight) times the episode length in steps + 2 x goal_bonus), below any
+    /// episode without a crash.
     pub crash: Option<f64>,
 }
 
@@ -118,12 +123,16 @@ impl RewardSpec {
     /// The risk weight by default (docs/rewards.md, "Risk": the smallest of those tried
     /// under which a policy that passes cars side by side returns less than the AV).
     pub const DEFAULT_RISK_WEIGHT: f64 = 10.0;
+    /// The goal bonus by default (docs/rewards.md, "Goal").
+    pub const DEFAULT_GOAL_BONUS: f64 = 0.0;
 
     /// The crash reward for episodes of `max_cycles` steps: `crash`, else minus
-    /// (1 + risk_weight) x max_cycles, less than any episode without a crash returns
-    /// (each of its steps earns at least -risk_weight, a crash episode's others at most 1).
+    /// ((1 + risk_weight) x max_cycles + 2 x goal_bonus), less than any episode without a
+    /// crash returns (each of its steps earns at least -risk_weight, a crash episode's
+    /// others at most 1, and the goal's payments add up to between -goal_bonus and
+    /// goal_bonus at any step).
     pub fn crash_reward(&self, max_cycles: u32) -> f64 {
-        self.crash.unwrap_or(-(1.0 + self.risk_weight) * f64::from(max_cycles))
+        self.crash.unwrap_or(-((1.0 + self.risk_weight) * f64::from(max_cycles) + 2.0 * self.goal_bonus))
     }
 }
 

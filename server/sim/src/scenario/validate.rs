@@ -40,8 +40,8 @@ impl ScenarioFile {
         let vehicles = self.vehicles.iter().map(|v| v.validate(&road)).collect::<Result<Vec<_>, _>>()?;
         check_names_and_overlaps(&vehicles, &road)?;
         let traffic = self.traffic.map(|t| t.validate(&road)).transpose()?;
-        let reward = self.reward.validate(sim.max_cycles)?;
         let goal = self.goal.validate(&road, &vehicles)?;
+        let reward = self.reward.validate(sim.max_cycles, &goal)?;
         let vary = validate_vary(&self.vary)?;
         Ok(Scenario {
             name: self.name,
@@ -61,7 +61,7 @@ impl ScenarioFile {
 }
 
 impl RewardFile {
-    fn validate(&self, _max_cycles: u32) -> Result<RewardSpec, ScenarioErrorKind> {
+    fn validate(&self, _max_cycles: u32, goal: &Goal) -> Result<RewardSpec, ScenarioErrorKind> {
         let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
         if !(self.cost_scale.is_finite() && self.cost_scale > 0.0) {
             return Err(invalid("reward.cost_scale", format!("must be a positive number, not {}", self.cost_scale)));
@@ -72,7 +72,17 @@ impl RewardFile {
         if !(self.risk_weight.is_finite() && self.risk_weight >= 0.0) {
             return Err(invalid("reward.risk_weight", format!("must be 0 or more, not {}", self.risk_weight)));
         }
-        Ok(RewardSpec { cost_scale: self.cost_scale, risk_weight: self.risk_weight, crash: self.crash })
+        if !(self.goal_bonus.is_finite() && self.goal_bonus >= 0.0) {
+            return Err(invalid("reward.goal_bonus", format!("must be 0 or more, not {}", self.goal_bonus)));
+        }
+        Ok(RewardSpec {
+            cost_scale: self.cost_scale,
+            risk_weight: self.risk_weight,
+            // A scenario without a goal (the highways) has nothing to pay it for, and its
+            // crash reward stays -(1 + risk_weight) x max_cycles.
+            goal_bonus: if goal.lanes.is_empty() && goal.ahead_of.is_empty() { 0.0 } else { self.goal_bonus },
+            crash: self.crash,
+        })
     }
 }
 

@@ -459,7 +459,7 @@ pub struct EnvStatistics {
     /// `possible_agents` order: the wall time the server spent deciding for it in each
     /// step it drove it (every control period of the step, the decision and the
     /// controller), in microseconds, oldest first, since the env was created; at most
-    /// the newest `EnvStatistics::MAX_STEPS` steps.
+    /// the newest `EnvStatistics::kept_per_agent` steps.
     pub decision_micros: Vec<(String, Vec<f32>)>,
 }
 
@@ -467,6 +467,14 @@ impl EnvStatistics {
     /// Most steps kept per agent: 20 000 (80 KB), chosen here, a hundred episodes of
     /// 200 steps.
     pub const MAX_STEPS: usize = 20_000;
+    /// Most samples kept per env over all its agents: 2^18 (1 MiB), so that an env of
+    /// many learners (a client's inline scenario) holds and sends a bounded amount.
+    pub const MAX_SAMPLES: usize = 1 << 18;
+
+    /// Steps kept per agent in an env of `agents` learners.
+    pub fn kept_per_agent(agents: usize) -> usize {
+        (Self::MAX_SAMPLES / agents.max(1)).clamp(1, Self::MAX_STEPS)
+    }
 }
 
 /// One env's result within a batch.
@@ -985,6 +993,14 @@ mod tests {
         };
         let costs = &back.explain[0].tables[0].ec_costs;
         assert!(costs[3].is_nan() && costs[..3] == [1.0, 1.0, 2.0], "{costs:?}");
+    }
+
+    #[test]
+    fn statistics_stay_bounded_however_many_learners_an_env_has() {
+        assert_eq!(EnvStatistics::kept_per_agent(1), EnvStatistics::MAX_STEPS);
+        assert_eq!(EnvStatistics::kept_per_agent(0), EnvStatistics::MAX_STEPS);
+        assert_eq!(EnvStatistics::kept_per_agent(1000), 262);
+        assert_eq!(EnvStatistics::kept_per_agent(1 << 20), 1, "every agent keeps its latest step");
     }
 
     #[test]

@@ -95,8 +95,8 @@ pub struct Env {
     /// episode is built again.
     reset_inputs: (u64, Vec<(String, arena_protocol::OptionValue)>),
     /// Per agent, the server's wall time deciding for it in each step its built-in
-    /// `policy` drove it (µs), the newest `EnvStatistics::MAX_STEPS`: the `Statistics`
-    /// reply, never an info.
+    /// `policy` drove it (µs), the newest `EnvStatistics::kept_per_agent`: the
+    /// `Statistics` reply, never an info.
     decision_micros: Vec<VecDeque<f32>>,
 }
 
@@ -454,10 +454,11 @@ impl Env {
     fn clock_decisions(&mut self) {
         let Some(world) = self.world.as_mut().filter(|_| self.policy.is_some()) else { return };
         self.decision_micros.resize_with(self.agents.len(), VecDeque::new);
+        let cap = EnvStatistics::kept_per_agent(self.agents.len());
         for &i in &self.scratch.live_before {
             let spent = world.take_decision_time(self.agents[i].vehicle);
             let kept = &mut self.decision_micros[i];
-            if kept.len() == EnvStatistics::MAX_STEPS {
+            if kept.len() >= cap {
                 kept.pop_front();
             }
             kept.push_back(spent.as_secs_f64() as f32 * 1e6);

@@ -5,10 +5,14 @@
 //! figures docs/performance.md records. Then the AV step in traffic: every gt car of
 //! highway-gt.toml, planned from the world as it is every second from 5 to 24 s (issue
 //! 25's target: p50 about 20 us on one core), and the whole highway-gt world on one
-//! decision thread (ms per simulated second: the mean that throughput follows).
+//! and on two decision threads (ms per simulated second: the mean that throughput follows),
+//! with a digest of the worlds' final states: two builds that print the same digest
+//! simulated the same bits.
 //!
-//! Run: `cargo bench -p arena-paper --bench gt`
+//! Run: `cargo bench -p arena-paper --bench gt`; `-- tails`, `-- traffic` or `-- world`
+//! runs that section alone.
 
+use std::hash::Hasher;
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -162,6 +166,7 @@ the AV step in traffic (highway-gt.toml, seed 0, every gt car at 5..24 s):"
 fn world_rate(threads: usize) {
     let scenario = builtin_scenario("highway-gt").expect("highway-gt is built in").expect("it validates");
     let mut elapsed = Duration::ZERO;
+    let mut digest = std::hash::DefaultHasher::new();
     for seed in 0..3 {
         let mut world = scenario.build(seed);
         world.set_decision_threads(threads);
@@ -169,17 +174,35 @@ fn world_rate(threads: usize) {
         let start = Instant::now();
         world.advance(20.0);
         elapsed += start.elapsed();
+        world.vehicles().iter().flat_map(|v| v.state.to_array()).for_each(|x| digest.write_u64(x.to_bits()));
     }
     let per_second = elapsed.as_secs_f64() * 1e3 / 60.0;
-    println!("world, {threads} thread(s)     {per_second:>7.2} ms per simulated s (highway-gt, seeds 0..3, 5..25 s)");
+    let digest = digest.finish();
+    println!(
+        "world, {threads} thread(s)     {per_second:>7.2} ms per simulated s (highway-gt, seeds 0..3, 5..25 s), state digest {digest:016x}"
+    );
+}
+
+/// The bench's filter (its first argument not an option), which picks the sections
+/// after criterion's too: `world` times the whole world only.
+fn filter() -> Option<String> {
+    std::env::args().skip(1).find(|arg| !arg.starts_with('-'))
 }
 
 fn main() {
     let mut criterion = Criterion::default().configure_from_args();
     bench(&mut criterion);
     criterion.final_summary();
-    tails();
-    traffic();
-    world_rate(1);
-    world_rate(2);
+    let runs =
+        |section: &str| filter().is_none_or(|f| !["tails", "traffic", "world"].contains(&f.as_str()) || f == section);
+    if runs("tails") {
+        tails();
+    }
+    if runs("traffic") {
+        traffic();
+    }
+    if runs("world") {
+        world_rate(1);
+        world_rate(2);
+    }
 }

@@ -7,11 +7,12 @@
 //! depend on roles, never on the order of vehicles in a file. Neighbour queries and
 //! collision checks use sorted orders, so a tick costs O(n) for n vehicles.
 
+use std::sync::OnceLock;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::{self, Command, DriverParams, LateralPath, Style, VehicleParams, VehicleState};
@@ -214,13 +215,15 @@ pub struct World {
     clock: DecisionClock,
 }
 
-/// Wall time each vehicle's driver spent deciding since it was last taken: a measurement
-/// for a compute budget (`arena eval`), never read by the simulation, so two worlds in
-/// the same state are equal whatever their clocks read.
+/// Wall time each vehicle's driver spent deciding: since it was last taken, a
+/// measurement for a compute budget (`arena eval`); in its last parallel decision, the
+/// order the next ones are taken in. Never read by a decision, so two worlds in the same
+/// state are equal whatever their clocks read.
 #[derive(Debug, Clone, Default)]
 struct DecisionClock {
     on: bool,
     spent: Vec<Duration>,
+    last: Vec<Duration>,
 }
 
 impl PartialEq for DecisionClock {
@@ -541,6 +544,8 @@ impl World {
 
     /// Adds `spent` to vehicle `index`'s clock; returns `decision`.
     fn clocked(&mut self, index: usize, decision: Decision, spent: Duration) -> Decision {
+        self.clock.last.resize(self.vehicles.len(), Duration::ZERO);
+        self.clock.last[index] = spent;
         if self.clock.on {
             self.clock.spent.resize(self.vehicles.len(), Duration::ZERO);
             self.clock.spent[index] += spent;
@@ -552,7 +557,8 @@ impl World {
     /// (`take_decision_time`), or stop. Off by default; the decisions are the same bits
     /// either way.
     pub fn clock_decisions(&mut self, on: bool) {
-        self.clock = DecisionClock { on, spent: Vec::new() };
+        self.clock.on = on;
+        self.clock.spent.clear();
     }
 
     /// The wall time vehicle `id`'s driver spent deciding since the last call (zero
@@ -587,36 +593,57 @@ impl World {
         std::mem::take(&mut self.explanations)
     }
 
-    /// The decisions of the game-theoretic cars that `pick` selects, made in
-    /// `decision_threads` parts in parallel when there are two or more of them (each reads the
+    /// The decisions of the game-theoretic cars that `pick` selects, made on up to
+    /// `decision_threads` threads when there are two or more of them (each reads the
     /// scene only, so the bits do not depend on the threads); empty otherwise, and the
     /// caller decides them in turn.
     fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Vec<(usize, Decision, Duration)> {
         if self.decision_threads < 2 {
             return Vec::new();
         }
-        let gt: Vec<usize> = (0..self.vehicles.len())
+        let mut gt: Vec<usize> = (0..self.vehicles.len())
             .filter(|&i| self.vehicles[i].status == Status::Driving && matches!(self.vehicles[i].driver, Driver::Gt(_)))
             .filter(|&i| pick(self, i))
             .collect();
         if gt.len() < 2 {
             return Vec::new();
         }
-        // On rayon's pool, built once for the process: a thread spawned per control period
-        // cost as much as a decision. A panic in a decision surfaces on this thread. Car by
-        // car when every thread of the pool may decide, so a car with two side games does
-        // not hold up a part of cars with none; otherwise one part per allowed thread.
-        let chunk = if self.decision_threads >= rayon::current_num_threads() {
-            1
-        } else {
-            gt.len().div_ceil(self.decision_threads)
+        // Every thread takes the next car when it is done with one, the cars slowest to
+        // decide last period first, so that no thread is left with a slow car at the end.
+        gt.sort_by_key(|&i| std::cmp::Reverse(self.clock.last.get(i).copied().unwrap_or_default()));
+        let next = AtomicUsize::new(0);
+        let decided: Vec<OnceLock<(Decision, Duration)>> = gt.iter().map(|_| OnceLock::new()).collect();
+        let work = || {
+            loop {
+                let k = next.fetch_add(1, Ordering::Relaxed);
+                let Some(&index) = gt.get(k) else { break };
+                let start = Instant::now();
+                let decision = self.decide_one(index);
+                let _ = decided[k].set((decision, start.elapsed()));
+            }
         };
-        gt.par_chunks(chunk)
-            .flat_map_iter(|part| {
-                part.iter().map(|&i| {
-                    let (decision, spent) = self.decide_timed(i);
-                    (i, decision, spent)
-                })
+        // The calling thread decides too, beside helper threads: it does not sleep while
+        // they wake. Within a pool (a batch env's worker), the helpers are that pool's;
+        // otherwise the decision pool's, built once for the process (a thread spawned per
+        // control period cost as much as a decision) with one thread fewer than the
+        // cores, so no thread spins for work beside the two that decide. A panic in a
+        // decision surfaces on this thread.
+        let helpers = |threads: usize| self.decision_threads.min(threads + 1).min(gt.len()) - 1;
+        match decision_pool() {
+            Some(pool) if rayon::current_thread_index().is_none() => {
+                let helpers = helpers(pool.current_num_threads());
+                pool.in_place_scope(|scope| alongside(scope, helpers, &work));
+            }
+            _ => {
+                let helpers = helpers(rayon::current_num_threads().saturating_sub(1));
+                rayon::in_place_scope(|scope| alongside(scope, helpers, &work));
+            }
+        }
+        gt.into_iter()
+            .zip(decided)
+            .map(|(index, slot)| {
+                let (decision, spent) = slot.into_inner().expect("the scope ends when every car is decided");
+                (index, decision, spent)
             })
             .collect()
     }
@@ -840,3 +867,24 @@ pub fn oriented_boxes_overlap(a: (f64, f64, f64), b: (f64, f64, f64), half: (f64
 
 #[cfg(test)]
 mod tests;
+
+/// The threads that help the calling thread decide a world's game-theoretic cars
+/// (`World::in_parallel`): one fewer than the cores, built on first use; `None` on one
+/// core or if the threads cannot be made (the cars are then decided in turn).
+fn decision_pool() -> Option<&'static rayon::ThreadPool> {
+    static POOL: OnceLock<Option<rayon::ThreadPool>> = OnceLock::new();
+    POOL.get_or_init(|| {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let builder = rayon::ThreadPoolBuilder::new().num_threads(cores.checked_sub(1).filter(|&n| n > 0)?);
+        builder.thread_name(|i| format!("decide-{i}")).build().ok()
+    })
+    .as_ref()
+}
+
+/// Runs `work` on this thread and on `helpers` jobs of `scope`'s pool.
+fn alongside<'scope>(scope: &rayon::Scope<'scope>, helpers: usize, work: &'scope (impl Fn() + Sync)) {
+    for _ in 0..helpers {
+        scope.spawn(move |_| work());
+    }
+    work();
+}

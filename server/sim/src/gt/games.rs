@@ -401,7 +401,8 @@ const LANES: usize = 4;
 struct AcTerms {
     safety_weight: f64,
     comfort: Vec<f64>,
-    efficiency: Option<Vec<Vec<f64>>>,
+    /// Per action, its samples in order (`samples` of them each).
+    efficiency: Option<Vec<f64>>,
 }
 
 impl AcTerms {
@@ -414,7 +415,7 @@ impl AcTerms {
             .map(|col| {
                 let mut sum = 0.0;
                 for k in 0..samples {
-                    let efficiency = self.efficiency.as_ref().map_or(0.0, |e| e[col][k]);
+                    let efficiency = self.efficiency.as_ref().map_or(0.0, |e| e[col * samples + k]);
                     sum += self.safety_weight * 0.0 + self.comfort[col] + efficiency;
                 }
                 sum / samples.max(1) as f64
@@ -436,12 +437,46 @@ struct Cell<'a> {
     params: &'a DecisionParams,
 }
 
+/// One player's predicted paths, one per action, each of the horizon's samples, in one
+/// buffer: a side's game predicts up to 58 of them every control period.
+struct Paths {
+    samples: Vec<Kinematics>,
+    per_path: usize,
+}
+
+impl Paths {
+    fn new(params: &PredictionParams, paths: usize) -> Paths {
+        let per_path = params.samples.max(1);
+        Paths { samples: Vec::with_capacity(paths * per_path), per_path }
+    }
+
+    fn len(&self) -> usize {
+        self.samples.len() / self.per_path
+    }
+
+    fn iter(&self) -> std::slice::ChunksExact<'_, Kinematics> {
+        self.samples.chunks_exact(self.per_path)
+    }
+
+    fn get(&self, path: usize) -> Option<&[Kinematics]> {
+        self.samples.get(path * self.per_path..(path + 1) * self.per_path)
+    }
+}
+
+impl std::ops::Index<usize> for Paths {
+    type Output = [Kinematics];
+
+    fn index(&self, path: usize) -> &[Kinematics] {
+        &self.samples[path * self.per_path..(path + 1) * self.per_path]
+    }
+}
+
 /// The predicted samples every entry of a side's tables reads.
 struct Samples {
-    ec: Vec<Vec<Kinematics>>,
+    ec: Paths,
     /// Per EC action, the full-width duration of its lane change (s).
     durations: Vec<f64>,
-    ac: Vec<Vec<Kinematics>>,
+    ac: Paths,
     leader: Vec<Kinematics>,
     lead: Vec<Kinematics>,
     lead_side: Vec<Kinematics>,
@@ -461,7 +496,7 @@ fn ramp_comfort(c: &CostParams, p: &PredictionParams, sigma: i8, ramp: AccelRamp
 }
 
 fn constant_speed(p: &PredictionParams, car: Option<Kinematics>) -> Vec<Kinematics> {
-    let mut out = Vec::new();
+    let mut out = Vec::with_capacity(if car.is_some() { p.samples } else { 0 });
     if let Some(car) = car {
         let bounds = SpeedBounds { min: 0.0, max: f64::INFINITY };
         prediction::predict(p, car, AccelRamp::step(0.0), bounds, None, &mut out);
@@ -691,7 +726,7 @@ impl Situation {
         // AC's reply nor in its follower set, and is not computed (`Needs::All` computes
         // every cell: the reference).
         let terms = self.ac_terms(&cell, &ac_actions);
-        let n = samples.ec.first().map_or(0, Vec::len);
+        let n = samples.ec.get(0).map_or(0, <[Kinematics]>::len);
         let floors = terms.as_ref().map_or_else(|| vec![0.0; cols], |terms| terms.floors(n));
         let mut by_floor: Vec<usize> = (0..cols).collect();
         by_floor.sort_by(|&a, &b| floors[a].total_cmp(&floors[b]).then(a.cmp(&b)));
@@ -802,32 +837,22 @@ impl Situation {
         let p = &params.prediction;
         let durations: Vec<f64> =
             ec_actions.iter().map(|&(accel, sigma)| self.duration(accel, sigma, params)).collect();
-        let ec = ec_actions
-            .iter()
-            .zip(&durations)
-            .map(|(&(accel, sigma), &duration)| {
-                let mut out = Vec::new();
-                let target = self.option(sigma).unwrap_or(&self.keep);
-                let bounds = self.ego_bounds(target, &params.game);
-                let path = (sigma != 0).then(|| self.lane_change_path(target, duration));
-                let ramp = params.jerk.ramp(self.ego.accel, accel);
-                prediction::predict(p, self.ego.now, ramp, bounds, path.as_ref(), &mut out);
-                out
-            })
-            .collect();
+        let mut ec = Paths::new(p, ec_actions.len());
+        for (&(accel, sigma), &duration) in ec_actions.iter().zip(&durations) {
+            let target = self.option(sigma).unwrap_or(&self.keep);
+            let bounds = self.ego_bounds(target, &params.game);
+            let path = (sigma != 0).then(|| self.lane_change_path(target, duration));
+            let ramp = params.jerk.ramp(self.ego.accel, accel);
+            prediction::predict(p, self.ego.now, ramp, bounds, path.as_ref(), &mut ec.samples);
+        }
         let adjacent = option.and_then(|o| o.adjacent);
-        let ac = match adjacent {
-            Some(adj) => ac_actions
-                .iter()
-                .map(|&accel| {
-                    let mut out = Vec::new();
-                    let ramp = params.jerk.ramp(adj.player.accel, accel);
-                    prediction::predict(p, adj.player.now, ramp, adj.player.bounds, None, &mut out);
-                    out
-                })
-                .collect(),
-            None => Vec::new(),
-        };
+        let mut ac = Paths::new(p, if adjacent.is_some() { ac_actions.len() } else { 0 });
+        if let Some(adj) = adjacent {
+            for &accel in ac_actions {
+                let ramp = params.jerk.ramp(adj.player.accel, accel);
+                prediction::predict(p, adj.player.now, ramp, adj.player.bounds, None, &mut ac.samples);
+            }
+        }
         Samples {
             ec,
             durations,
@@ -857,15 +882,12 @@ impl Situation {
             samples
                 .ac
                 .iter()
-                .map(|path| {
-                    path.iter()
-                        .enumerate()
-                        .map(|(k, &ac)| {
-                            // As `ac_cost` computes v-bar for a lane change with the cap off.
-                            let v_bar = costs::target_speed(c, ac, limit, samples.ac_lead.get(k).copied()).min(limit);
-                            w.efficiency * costs::efficiency(ac.speed, v_bar)
-                        })
-                        .collect()
+                .flat_map(|path| {
+                    path.iter().enumerate().map(|(k, &ac)| {
+                        // As `ac_cost` computes v-bar for a lane change with the cap off.
+                        let v_bar = costs::target_speed(c, ac, limit, samples.ac_lead.get(k).copied()).min(limit);
+                        w.efficiency * costs::efficiency(ac.speed, v_bar)
+                    })
                 })
                 .collect()
         });
@@ -881,14 +903,14 @@ impl Situation {
         row: usize,
         cols: &[usize],
         terms: &AcTerms,
-        efficiency: &[Vec<f64>],
+        efficiency: &[f64],
     ) -> [f64; LANES] {
         use wide::{CmpGe, CmpLt, f64x4};
         let c = &cell.params.costs;
         let ec_path = &cell.samples.ec[row];
         // Unused lanes repeat the first column; their results are dropped.
         let lane = |i: usize| cols.get(i).copied().unwrap_or(cols[0]);
-        let paths: [&Vec<Kinematics>; LANES] = std::array::from_fn(|i| &cell.samples.ac[lane(i)]);
+        let paths: [&[Kinematics]; LANES] = std::array::from_fn(|i| &cell.samples.ac[lane(i)]);
         let splat = f64x4::splat;
         let comfort = f64x4::new(std::array::from_fn(|i| terms.comfort[lane(i)]));
         let (zero, one) = (splat(0.0), splat(1.0));
@@ -905,7 +927,7 @@ impl Situation {
             let gap = separation.max(zero);
             let proximity = splat(c.kappa_s_lat) / (gap * gap + splat(c.epsilon)) * (one + (-separation).max(zero));
             let lateral = splat(c.kappa_v_lat) * lambda * dv * dv + proximity;
-            let efficiency = f64x4::new(std::array::from_fn(|i| efficiency[lane(i)][k]));
+            let efficiency = f64x4::new(std::array::from_fn(|i| efficiency[lane(i) * ec_path.len() + k]));
             sum += splat(terms.safety_weight) * lateral + comfort + efficiency;
         }
         (sum / splat(ec_path.len().max(1) as f64)).to_array()
@@ -951,7 +973,7 @@ impl Situation {
         &self,
         cell: &Cell,
         row: usize,
-        ac_path: Option<&Vec<Kinematics>>,
+        ac_path: Option<&[Kinematics]>,
         accel: f64,
         sigma: i8,
     ) -> CostComponents {
@@ -1154,8 +1176,9 @@ impl Situation {
         let ec_actions = [side_game.ec_actions[profile.row]];
         let ac_actions = [side_game.ac_actions[profile.col]];
         let option = side_game.option.as_ref();
-        let mut samples = self.samples(&ec_actions, &ac_actions, option, params);
-        (samples.ec.swap_remove(0), samples.ac.pop().unwrap_or_default())
+        let samples = self.samples(&ec_actions, &ac_actions, option, params);
+        let path = |paths: &Paths| paths.get(0).map_or_else(Vec::new, <[Kinematics]>::to_vec);
+        (path(&samples.ec), path(&samples.ac))
     }
 }
 

@@ -141,7 +141,8 @@ fn advance_jerk(speed: f64, accel: f64, jerk: f64, t: f64, bounds: SpeedBounds) 
 }
 
 /// The predicted samples of one car driving `ramp` from `now`, moving sideways along
-/// `path` (time measured from `path.start` = 0 at now) or holding its offset.
+/// `path` (time measured from `path.start` = 0 at now) or holding its offset, appended to
+/// `out` (several paths share one buffer).
 pub fn predict(
     params: &PredictionParams,
     now: Kinematics,
@@ -150,7 +151,6 @@ pub fn predict(
     path: Option<&LateralPath>,
     out: &mut Vec<Kinematics>,
 ) {
-    out.clear();
     let mut ramp_end = None;
     for t in params.times() {
         let (ds, speed) = advance_ramp_from(now.speed, ramp, bounds, t, &mut ramp_end);

@@ -502,12 +502,7 @@ fn field_around(scene: &Scene, id: VehicleId, params: &FieldParams, one_sided: b
         .filter(|car| car.id != id)
         .map(|car| Obstacle { s: car.state.s, d: car.state.d, heading: car.state.heading, speed: car.speed() })
         .collect();
-    Field {
-        params: *params,
-        width: scene.vehicle.width,
-        obstacles,
-        lines: field::road_lines(&scene.road, params, one_sided),
-    }
+    Field::new(*params, scene.vehicle.width, obstacles, field::road_lines(&scene.road, params, one_sided))
 }
 
 /// Plans Y_p toward `target` lane for car `id`, driven by `gt`, at acceleration `accel`

@@ -107,14 +107,14 @@ impl Line {
 /// Eq. (20): the field of one obstacle at (s, d).
 #[cfg(test)]
 fn obstacle_field(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> f64 {
-    obstacle_gradient(p, oc, s, d).0
+    obstacle_gradient(p, oc, oc.heading.sin_cos(), s, d).0
 }
 
 /// Eq. (20) at (s, d) and its partial derivatives in s and d, by the chain rule through
-/// the obstacle's axes (X-hat, Y-hat).
+/// the obstacle's axes (X-hat, Y-hat); `turn` is the (sin, cos) of its heading, the same
+/// at every instant of a plan (`Field::new` computes it once).
 #[inline]
-pub(crate) fn obstacle_gradient(p: &FieldParams, oc: &Obstacle, s: f64, d: f64) -> (f64, f64, f64) {
-    let (sin, cos) = oc.heading.sin_cos();
+fn obstacle_gradient(p: &FieldParams, oc: &Obstacle, (sin, cos): (f64, f64), s: f64, d: f64) -> (f64, f64, f64) {
     let (ds, dd) = (s - oc.s, d - oc.d);
     let x = cos * ds + sin * dd; // X-hat
     let y = -sin * ds + cos * dd; // Y-hat
@@ -177,13 +177,27 @@ pub struct Field {
     pub params: FieldParams,
     /// W of eq. (21): the planning car's width (m), from `VehicleParams`.
     pub width: f64,
-    /// Nearby cars.
-    pub obstacles: Vec<Obstacle>,
+    /// Nearby cars (`add_obstacle`, so each one's turn is kept beside it).
+    obstacles: Vec<Obstacle>,
     /// The road's lines.
     pub lines: Vec<Line>,
+    /// Each obstacle's (sin, cos) of its heading: computed once, read at every instant.
+    turns: Vec<(f64, f64)>,
 }
 
 impl Field {
+    /// The field of `obstacles` and `lines` for a car `width` wide.
+    pub fn new(params: FieldParams, width: f64, obstacles: Vec<Obstacle>, lines: Vec<Line>) -> Field {
+        let turns = obstacles.iter().map(|oc| oc.heading.sin_cos()).collect();
+        Field { params, width, obstacles, lines, turns }
+    }
+
+    /// Adds one more car to the field.
+    pub fn add_obstacle(&mut self, obstacle: Obstacle) {
+        self.obstacles.push(obstacle);
+        self.turns.push(obstacle.heading.sin_cos());
+    }
+
     /// Eq. (19) at (s, d), `t` seconds from now (obstacles moved on at their speed).
     pub fn value(&self, s: f64, d: f64, t: f64) -> f64 {
         self.gradient(s, d, t).0
@@ -194,8 +208,9 @@ impl Field {
     pub fn gradient(&self, s: f64, d: f64, t: f64) -> (f64, f64, f64) {
         let p = &self.params;
         let (mut cars, mut cars_s, mut cars_d) = (0.0, 0.0, 0.0);
-        for oc in &self.obstacles {
-            let (value, along, across) = obstacle_gradient(p, &Obstacle { s: oc.s + oc.speed * t, ..*oc }, s, d);
+        for (oc, &turn) in self.obstacles.iter().zip(&self.turns) {
+            let moved = Obstacle { s: oc.s + oc.speed * t, ..*oc };
+            let (value, along, across) = obstacle_gradient(p, &moved, turn, s, d);
             (cars, cars_s, cars_d) = (cars + value, cars_s + along, cars_d + across);
         }
         let (mut road, mut road_d) = (0.0, 0.0);
@@ -243,7 +258,7 @@ mod tests {
         for (shape, one_sided) in [(1.0, true), (1.3, false)] {
             let params = FieldParams { shape, ..FieldParams::default() };
             let lines = road_lines(&road, &params, one_sided);
-            let field = Field { params, width: 2.0, obstacles: obstacles.clone(), lines };
+            let field = Field::new(params, 2.0, obstacles.clone(), lines);
             let h = 1e-5;
             for (s, d, t) in
                 [(38.0, -3.1, 0.0), (46.0, -5.0, 0.4), (60.0, -9.3, 1.2), (30.0, 1.7, 0.0), (310.0, -9.0, 0.0)]
@@ -292,7 +307,7 @@ mod tests {
         let p = FieldParams::default();
         assert!((road_field(&p, 2.0, 2.0, 1.3) - 2.0).abs() < 1e-12); // d = d-dagger + W/2
         let line = Line { d: 2.0, peak: 1.0, from: 0.0, to: 100.0, road_side: 0 };
-        let field = Field { params: p, width: 2.0, obstacles: vec![], lines: vec![line] };
+        let field = Field::new(p, 2.0, vec![], vec![line]);
         let (value, ds, dd) = field.gradient(50.0, 0.5, 0.0);
         assert!((value - road_field(&p, 2.0, 1.0, 1.5)).abs() < 1e-12);
         assert!(ds.abs() < 1e-9 && dd > 0.0);

@@ -5,7 +5,7 @@ use crate::road::Road;
 
 fn straight_field(road: &Road) -> Field {
     let params = FieldParams::default();
-    Field { params, width: 2.0, obstacles: vec![], lines: road_lines(road, &params, true) }
+    Field::new(params, 2.0, vec![], road_lines(road, &params, true))
 }
 
 /// A problem on a straight road at 10 Hz, coasting, with the preview point free across the road.
@@ -86,7 +86,7 @@ fn lane_keeping_stays_on_the_centre_between_the_lines() {
 fn the_direct_solution_is_the_one_clarabel_converges_to_and_declines_an_active_bound() {
     let road = Road::straight(2000.0, 3, 4.0, 30.0);
     let mut field = straight_field(&road);
-    field.obstacles.push(Obstacle { s: 25.0, d: -1.0, heading: 0.0, speed: 20.0 });
+    field.add_obstacle(Obstacle { s: 25.0, d: -1.0, heading: 0.0, speed: 20.0 });
     let (vehicle, driver) = (VehicleParams::default(), DriverParams::default());
     let params = MpcParams::default();
     let state = VehicleState { heading: 0.004, ..VehicleState::cruising(0.0, -4.2, 20.0) };
@@ -132,7 +132,7 @@ fn the_field_pushes_the_plan_away_from_an_obstacle_beside_the_path() {
     };
     let free = preview(&field);
     // A car creeping just to the left, level with us: we move right.
-    field.obstacles.push(Obstacle { s: 5.0, d: -2.6, heading: 0.0, speed: 20.0 });
+    field.add_obstacle(Obstacle { s: 5.0, d: -2.6, heading: 0.0, speed: 20.0 });
     let pushed = preview(&field);
     assert!(pushed < free - 0.05, "free {free}, pushed {pushed}");
 }

@@ -155,31 +155,43 @@ pub(crate) fn build_qp(problem: &MpcProblem, params: &MpcParams) -> Qp {
     nominal.resize(n, 0.0);
 
     let mut x = SVector::<f64, STATES>::from(problem.state.to_array());
-    // d x(k) / d Delta u(j), one column per increment.
-    let mut sens = vec![SVector::<f64, STATES>::zeros(); n];
+    // d x(k) / d Delta u(j) is the response to one increment j steps late: the same
+    // sequence shifted, `impulse[k - j]` for j <= k and zero before the increment, so
+    // only the increments that have moved x(k) (the first `moved`) enter its terms.
+    let mut impulse = Vec::with_capacity(params.prediction_horizon);
+    let mut response = SVector::<f64, STATES>::zeros();
     let (mut p, mut q) = (DMatrix::<f64>::zeros(n, n), DVector::<f64>::zeros(n));
-    let mut gain = DVector::<f64>::zeros(n);
-    let mut add = |gain: &DVector<f64>, constant: f64, weight: f64| {
-        p.ger(weight, gain, gain, 1.0); // eq. (26), ||y||_Q^2
-        q.axpy(constant * weight, gain, 1.0);
+    let mut gain = vec![0.0; n];
+    // eq. (26), ||y||_Q^2: P += w g g', q += c w g, as nalgebra's `ger` and `axpy` sum them.
+    let mut add = |gain: &[f64], constant: f64, weight: f64| {
+        for (j, &gain_j) in gain.iter().enumerate() {
+            for (i, &gain_i) in gain.iter().enumerate() {
+                p[(i, j)] += weight * gain_j * gain_i;
+            }
+        }
+        for (i, &gain_i) in gain.iter().enumerate() {
+            q[i] += constant * weight * gain_i;
+        }
     };
     for k in 0..params.prediction_horizon {
         x = disc.a * x + b_y * u_prev + drift(k); // eq. (24) with u(k) = u(k-1) + sum of Delta u
-        for (j, column) in sens.iter_mut().enumerate() {
-            *column = disc.a * *column + if j <= k { b_y } else { SVector::zeros() };
-        }
+        response = disc.a * response + b_y;
+        impulse.push(response);
+        let moved = n.min(k + 1);
+        let sens = |j: usize| &impulse[k - j];
         let t = (k + 1) as f64 * problem.dt;
-        let along = |i: usize| sens.iter().zip(&nominal).map(|(c, z)| c[i] * z).sum::<f64>();
+        let along = |i: usize| (0..moved).map(|j| sens(j)[i] * nominal[j]).sum::<f64>();
         let (nominal_s, nominal_d) = (x[4] + along(4), x[5] + along(5));
         let (value, grad_s, grad_d) = problem.field.gradient(nominal_s, nominal_d, t);
         // y_1 linearised at the nominal path; y_2, y_3 exact in the linear model.
-        gain.iter_mut().zip(&sens).for_each(|(g, c)| *g = grad_s * c[4] + grad_d * c[5]);
+        let gain = &mut gain[..moved];
+        gain.iter_mut().enumerate().for_each(|(j, g)| *g = grad_s * sens(j)[4] + grad_d * sens(j)[5]);
         let field = value + grad_s * (x[4] - nominal_s) + grad_d * (x[5] - nominal_d);
-        add(&gain, field, params.field_weight);
-        gain.iter_mut().zip(&sens).for_each(|(g, c)| *g = c[5]);
-        add(&gain, x[5] - problem.target, params.lateral_weight);
-        gain.iter_mut().zip(&sens).for_each(|(g, c)| *g = c[3]);
-        add(&gain, x[3], params.heading_weight);
+        add(gain, field, params.field_weight);
+        gain.iter_mut().enumerate().for_each(|(j, g)| *g = sens(j)[5]);
+        add(gain, x[5] - problem.target, params.lateral_weight);
+        gain.iter_mut().enumerate().for_each(|(j, g)| *g = sens(j)[3]);
+        add(gain, x[3], params.heading_weight);
     }
     for i in 0..n {
         p[(i, i)] += params.rate_weight; // eq. (26), ||Delta u||_R^2

@@ -445,9 +445,14 @@ struct Paths {
 }
 
 impl Paths {
+    /// Room for `paths` paths, each to be predicted into `path_mut`.
     fn new(params: &PredictionParams, paths: usize) -> Paths {
         let per_path = params.samples.max(1);
-        Paths { samples: Vec::with_capacity(paths * per_path), per_path }
+        Paths { samples: vec![Kinematics::default(); paths * per_path], per_path }
+    }
+
+    fn path_mut(&mut self, path: usize) -> &mut [Kinematics] {
+        &mut self.samples[path * self.per_path..(path + 1) * self.per_path]
     }
 
     fn len(&self) -> usize {
@@ -496,7 +501,7 @@ fn ramp_comfort(c: &CostParams, p: &PredictionParams, sigma: i8, ramp: AccelRamp
 }
 
 fn constant_speed(p: &PredictionParams, car: Option<Kinematics>) -> Vec<Kinematics> {
-    let mut out = Vec::with_capacity(if car.is_some() { p.samples } else { 0 });
+    let mut out = vec![Kinematics::default(); if car.is_some() { p.samples.max(1) } else { 0 }];
     if let Some(car) = car {
         let bounds = SpeedBounds { min: 0.0, max: f64::INFINITY };
         prediction::predict(p, car, AccelRamp::step(0.0), bounds, None, &mut out);
@@ -710,7 +715,32 @@ impl Situation {
         needs: Needs,
     ) -> SideGame {
         let option = self.option(side).copied();
-        let samples = self.samples(&ec_actions, &ac_actions, option.as_ref(), params);
+        let mut samples = self.samples_but_ec(&ec_actions, &ac_actions, option.as_ref(), params);
+        // EC's cost in each lane-keeping row (the same in every column: while EC keeps its
+        // lane its cost does not depend on AC), their least, and the lane-change rows whose
+        // comfort alone costs more than that: pruned before their paths are predicted.
+        for (row, &action) in ec_actions.iter().enumerate().filter(|(_, action)| action.1 == 0) {
+            self.predict_ec(&mut samples, row, action, params);
+        }
+        let keep_costs: Vec<Option<f64>> = {
+            let cell = Cell { samples: &samples, option: option.as_ref(), params };
+            let own = |(row, &(accel, sigma)): (usize, &(f64, i8))| {
+                (sigma == 0).then(|| self.ec_entry(&cell, row, 0, accel, sigma).weighted_by(&self.ego.weights))
+            };
+            ec_actions.iter().enumerate().map(own).collect()
+        };
+        let keep_best = keep_costs.iter().flatten().fold(f64::INFINITY, |best, &own| best.min(own));
+        let prunes = self.prunes(params, needs) && keep_best < f64::INFINITY;
+        let unpredicted: Vec<bool> = (ec_actions.iter().enumerate())
+            .map(|(row, &(accel, sigma))| {
+                sigma != 0 && prunes && self.ec_comfort_floor(&samples, row, accel, sigma, params) > keep_best
+            })
+            .collect();
+        for (row, &action) in ec_actions.iter().enumerate() {
+            if action.1 != 0 && !unpredicted[row] {
+                self.predict_ec(&mut samples, row, action, params);
+            }
+        }
         let (rows, cols) = (ec_actions.len(), ac_actions.len());
         let mut table = PayoffTable {
             rows,
@@ -734,16 +764,12 @@ impl Situation {
             Needs::Stackelberg(tolerance) => tolerance,
             _ => 0.0,
         };
-        // While EC keeps its lane, its cost does not depend on AC's action nor AC's on
-        // EC's: one column per row and one row of AC costs serve all those rows.
+        // While EC keeps its lane, AC's cost does not depend on EC's action: one row of AC
+        // costs serves all those rows.
         let mut keeping: Option<(Vec<f64>, usize)> = None;
-        // EC's least cost over the lane-keeping rows (each the same in every column), and
-        // whether a lane-change row can be pruned against it (`ec_floor`).
-        let mut keep_best = f64::INFINITY;
-        let prunes = self.prunes(params, needs);
         for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
-            let against_keeping = sigma != 0 && prunes && keep_best < f64::INFINITY;
-            if against_keeping && self.ec_floor(&cell, row, accel, sigma) > keep_best {
+            let against_keeping = sigma != 0 && prunes;
+            if unpredicted[row] || (against_keeping && self.ec_floor(&cell, row, accel, sigma) > keep_best) {
                 table.pruned[row] = true;
                 table.replies.push(0); // never read
                 continue;
@@ -789,10 +815,8 @@ impl Situation {
                 best.1
             };
             table.replies.push(reply);
-            if sigma == 0 {
-                let own = self.ec_entry(&cell, row, 0, accel, sigma).weighted_by(&self.ego.weights);
+            if let Some(own) = keep_costs[row] {
                 table.ec[row * cols..(row + 1) * cols].fill(own);
-                keep_best = keep_best.min(own);
             }
         }
         let mut wanted = vec![matches!(needs, Needs::All); rows * cols];
@@ -827,7 +851,23 @@ impl Situation {
         SideGame { ec_actions, ac_actions, table, option }
     }
 
+    /// Every path a side's tables read, EC's predicted for every action.
     fn samples(
+        &self,
+        ec_actions: &[(f64, i8)],
+        ac_actions: &[f64],
+        option: Option<&LaneOption>,
+        params: &DecisionParams,
+    ) -> Samples {
+        let mut samples = self.samples_but_ec(ec_actions, ac_actions, option, params);
+        for (row, &action) in ec_actions.iter().enumerate() {
+            self.predict_ec(&mut samples, row, action, params);
+        }
+        samples
+    }
+
+    /// Every path a side's tables read but EC's (`predict_ec`, row by row).
+    fn samples_but_ec(
         &self,
         ec_actions: &[(f64, i8)],
         ac_actions: &[f64],
@@ -837,24 +877,16 @@ impl Situation {
         let p = &params.prediction;
         let durations: Vec<f64> =
             ec_actions.iter().map(|&(accel, sigma)| self.duration(accel, sigma, params)).collect();
-        let mut ec = Paths::new(p, ec_actions.len());
-        for (&(accel, sigma), &duration) in ec_actions.iter().zip(&durations) {
-            let target = self.option(sigma).unwrap_or(&self.keep);
-            let bounds = self.ego_bounds(target, &params.game);
-            let path = (sigma != 0).then(|| self.lane_change_path(target, duration));
-            let ramp = params.jerk.ramp(self.ego.accel, accel);
-            prediction::predict(p, self.ego.now, ramp, bounds, path.as_ref(), &mut ec.samples);
-        }
         let adjacent = option.and_then(|o| o.adjacent);
         let mut ac = Paths::new(p, if adjacent.is_some() { ac_actions.len() } else { 0 });
         if let Some(adj) = adjacent {
-            for &accel in ac_actions {
+            for (col, &accel) in ac_actions.iter().enumerate() {
                 let ramp = params.jerk.ramp(adj.player.accel, accel);
-                prediction::predict(p, adj.player.now, ramp, adj.player.bounds, None, &mut ac.samples);
+                prediction::predict(p, adj.player.now, ramp, adj.player.bounds, None, ac.path_mut(col));
             }
         }
         Samples {
-            ec,
+            ec: Paths::new(p, ec_actions.len()),
             durations,
             ac,
             leader: constant_speed(p, self.keep.leader),
@@ -863,6 +895,15 @@ impl Situation {
             ac_leader: constant_speed(p, adjacent.and_then(|a| a.leader)),
             ac_lead: constant_speed(p, adjacent.and_then(|a| a.lead)),
         }
+    }
+
+    /// EC's predicted path for its action (accel, sigma) of row `row`.
+    fn predict_ec(&self, samples: &mut Samples, row: usize, (accel, sigma): (f64, i8), params: &DecisionParams) {
+        let target = self.option(sigma).unwrap_or(&self.keep);
+        let bounds = self.ego_bounds(target, &params.game);
+        let path = (sigma != 0).then(|| self.lane_change_path(target, samples.durations[row]));
+        let ramp = params.jerk.ramp(self.ego.accel, accel);
+        prediction::predict(&params.prediction, self.ego.now, ramp, bounds, path.as_ref(), samples.ec.path_mut(row));
     }
 
     /// AC's J_rc of eq. (13) for its action `accel` over the horizon (unweighted).
@@ -967,6 +1008,27 @@ impl Situation {
         self.ec_components(cell, row, None, accel, sigma).weighted_by(&self.ego.weights)
     }
 
+    /// A lower bound on `ec_floor` that reads no predicted path: the weighted comfort term
+    /// alone, averaged as `ec_components` averages it. The terms it leaves out are never
+    /// negative with no AC (safety is 0, efficiency a square) when the efficiency weight
+    /// is not, and rounding is monotonic; otherwise it is -infinity (no bound).
+    fn ec_comfort_floor(&self, samples: &Samples, row: usize, accel: f64, sigma: i8, params: &DecisionParams) -> f64 {
+        if self.ego.weights.efficiency < 0.0 {
+            return f64::NEG_INFINITY;
+        }
+        let comfort = self.ec_comfort(params, samples.durations[row], accel, sigma);
+        let n = samples.ec.per_path;
+        let sum = (0..n).fold(0.0, |sum, _| sum + comfort);
+        self.ego.weights.comfort * (sum * (1.0 / n as f64))
+    }
+
+    /// EC's J_rc of eq. (13) for its action (accel, sigma), its lane change `duration` long.
+    fn ec_comfort(&self, params: &DecisionParams, duration: f64, accel: f64, sigma: i8) -> f64 {
+        let lateral_accel = prediction::lane_change_accel_over(self.lane_width, duration);
+        let ramp = params.jerk.ramp(self.ego.accel, accel);
+        ramp_comfort(&params.costs, &params.prediction, sigma, ramp, lateral_accel)
+    }
+
     /// EC's cost components in row `row` against AC's predicted path `ac_path` (none: no
     /// AC), averaged over the predicted samples.
     fn ec_components(
@@ -980,9 +1042,7 @@ impl Situation {
         let (samples, c) = (cell.samples, &cell.params.costs);
         let ec_path = &samples.ec[row];
         let target = self.option(sigma).unwrap_or(&self.keep);
-        let lateral_accel = prediction::lane_change_accel_over(self.lane_width, samples.durations[row]);
-        let ramp = cell.params.jerk.ramp(self.ego.accel, accel);
-        let ec_comfort = ramp_comfort(c, &cell.params.prediction, sigma, ramp, lateral_accel);
+        let ec_comfort = self.ec_comfort(cell.params, samples.durations[row], accel, sigma);
         let mut ec_sum = CostComponents::default();
         for (k, &ego) in ec_path.iter().enumerate() {
             let ac = ac_path.map(|path| path[k]);

@@ -141,21 +141,21 @@ fn advance_jerk(speed: f64, accel: f64, jerk: f64, t: f64, bounds: SpeedBounds) 
 }
 
 /// The predicted samples of one car driving `ramp` from `now`, moving sideways along
-/// `path` (time measured from `path.start` = 0 at now) or holding its offset, appended to
-/// `out` (several paths share one buffer).
+/// `path` (time measured from `path.start` = 0 at now) or holding its offset, written to
+/// `out`, one per sample instant (`out` holds as many).
 pub fn predict(
     params: &PredictionParams,
     now: Kinematics,
     ramp: AccelRamp,
     bounds: SpeedBounds,
     path: Option<&LateralPath>,
-    out: &mut Vec<Kinematics>,
+    out: &mut [Kinematics],
 ) {
     let mut ramp_end = None;
-    for t in params.times() {
+    for (t, out) in params.times().zip(out) {
         let (ds, speed) = advance_ramp_from(now.speed, ramp, bounds, t, &mut ramp_end);
         let d = path.map_or(now.d, |p| p.offset_at(t));
-        out.push(Kinematics { s: now.s + ds, d, speed });
+        *out = Kinematics { s: now.s + ds, d, speed };
     }
 }
 
@@ -191,7 +191,7 @@ mod tests {
     fn samples_follow_the_lane_change_path() {
         let params = PredictionParams::default();
         let path = LateralPath { from: 0.0, to: 4.0, start: 0.0, duration: LANE_CHANGE_DURATION };
-        let mut out = Vec::new();
+        let mut out = vec![Kinematics::default(); params.samples];
         let now = Kinematics { s: 10.0, d: 0.0, speed: 20.0 };
         predict(&params, now, AccelRamp::step(0.0), BOUNDS, Some(&path), &mut out);
         assert_eq!(out.len(), params.samples);

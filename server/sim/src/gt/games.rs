@@ -439,6 +439,7 @@ struct Cell<'a> {
 
 /// One player's predicted paths, one per action, each of the horizon's samples, in one
 /// buffer: a side's game predicts up to 58 of them every control period.
+#[derive(Clone)]
 struct Paths {
     samples: Vec<Kinematics>,
     per_path: usize,
@@ -474,6 +475,16 @@ impl std::ops::Index<usize> for Paths {
     fn index(&self, path: usize) -> &[Kinematics] {
         &self.samples[path * self.per_path..(path + 1) * self.per_path]
     }
+}
+
+/// EC's lane-keeping rows of one side's game: their accelerations, predicted paths and
+/// EC's costs (`Situation::keep_rows`). They read neither side's AC, so the other side's
+/// game of the same decision takes them as they are.
+#[derive(Clone)]
+struct KeepRows {
+    accels: Vec<f64>,
+    paths: Paths,
+    costs: Vec<f64>,
 }
 
 /// The predicted samples every entry of a side's tables reads.
@@ -696,12 +707,15 @@ impl Situation {
     /// Builds the game of side `side` (eq. 16c–f / 18c–f) with AC's cost table and the
     /// cells of EC's that `needs` asks for.
     pub fn side_game(&self, side: i8, params: &DecisionParams, needs: Needs) -> SideGame {
-        let ec_actions = self.ec_actions(side, params);
-        let option = self.option(side).copied();
-        let adjacent = option.and_then(|o| o.adjacent);
-        let grid = |ac: Adjacent| params.game.grid(ac.player.now.speed, ac.player.bounds, self.period, &params.jerk);
-        let ac_actions = adjacent.map_or(vec![0.0], grid);
+        let (ec_actions, ac_actions) = self.actions(side, params);
         self.side_game_with(side, ec_actions, ac_actions, params, needs)
+    }
+
+    /// EC's and AC's actions in side `side`'s game (AC's one 0 when there is no AC).
+    fn actions(&self, side: i8, params: &DecisionParams) -> (Vec<(f64, i8)>, Vec<f64>) {
+        let adjacent = self.option(side).and_then(|o| o.adjacent);
+        let grid = |ac: Adjacent| params.game.grid(ac.player.now.speed, ac.player.bounds, self.period, &params.jerk);
+        (self.ec_actions(side, params), adjacent.map_or(vec![0.0], grid))
     }
 
     /// Builds side `side`'s game for the given actions (a row or column may be a single
@@ -714,20 +728,30 @@ impl Situation {
         params: &DecisionParams,
         needs: Needs,
     ) -> SideGame {
+        self.side_game_keeping(side, ec_actions, ac_actions, params, needs, None).0
+    }
+
+    /// `side_game_with`, taking the lane-keeping rows' paths and costs from `shared` (the
+    /// other side's game of the same decision) when its lane-keeping actions are the
+    /// same; returns its own for the next side.
+    fn side_game_keeping(
+        &self,
+        side: i8,
+        ec_actions: Vec<(f64, i8)>,
+        ac_actions: Vec<f64>,
+        params: &DecisionParams,
+        needs: Needs,
+        shared: Option<&KeepRows>,
+    ) -> (SideGame, KeepRows) {
         let option = self.option(side).copied();
         let mut samples = self.samples_but_ec(&ec_actions, &ac_actions, option.as_ref(), params);
         // EC's cost in each lane-keeping row (the same in every column: while EC keeps its
         // lane its cost does not depend on AC), their least, and the lane-change rows whose
         // comfort alone costs more than that: pruned before their paths are predicted.
-        for (row, &action) in ec_actions.iter().enumerate().filter(|(_, action)| action.1 == 0) {
-            self.predict_ec(&mut samples, row, action, params);
-        }
+        let kept = self.keep_rows(&ec_actions, &mut samples, option.as_ref(), params, shared);
         let keep_costs: Vec<Option<f64>> = {
-            let cell = Cell { samples: &samples, option: option.as_ref(), params };
-            let own = |(row, &(accel, sigma)): (usize, &(f64, i8))| {
-                (sigma == 0).then(|| self.ec_entry(&cell, row, 0, accel, sigma).weighted_by(&self.ego.weights))
-            };
-            ec_actions.iter().enumerate().map(own).collect()
+            let mut costs = kept.costs.iter();
+            ec_actions.iter().map(|action| if action.1 == 0 { costs.next().copied() } else { None }).collect()
         };
         let keep_best = keep_costs.iter().flatten().fold(f64::INFINITY, |best, &own| best.min(own));
         let prunes = self.prunes(params, needs) && keep_best < f64::INFINITY;
@@ -848,7 +872,42 @@ impl Situation {
                     self.ec_entry(&cell, row, col, accel, sigma).weighted_by(&self.ego.weights);
             }
         }
-        SideGame { ec_actions, ac_actions, table, option }
+        (SideGame { ec_actions, ac_actions, table, option }, kept)
+    }
+
+    /// EC's lane-keeping rows of a side's game (sigma = 0, in order): their paths written
+    /// into `samples` and their costs, copied from `shared` when it has the same actions.
+    fn keep_rows(
+        &self,
+        ec_actions: &[(f64, i8)],
+        samples: &mut Samples,
+        option: Option<&LaneOption>,
+        params: &DecisionParams,
+        shared: Option<&KeepRows>,
+    ) -> KeepRows {
+        let keep: Vec<(usize, f64)> =
+            ec_actions.iter().enumerate().filter(|(_, action)| action.1 == 0).map(|(row, a)| (row, a.0)).collect();
+        let same = |shared: &&KeepRows| {
+            shared.accels.len() == keep.len()
+                && keep.iter().zip(&shared.accels).all(|(k, a)| k.1.to_bits() == a.to_bits())
+        };
+        if let Some(shared) = shared.filter(same) {
+            for (k, &(row, _)) in keep.iter().enumerate() {
+                samples.ec.path_mut(row).copy_from_slice(&shared.paths[k]);
+            }
+            return shared.clone();
+        }
+        for &(row, accel) in &keep {
+            self.predict_ec(samples, row, (accel, 0), params);
+        }
+        let cell = Cell { samples, option, params };
+        let costs =
+            keep.iter().map(|&(row, accel)| self.ec_entry(&cell, row, 0, accel, 0).weighted_by(&self.ego.weights));
+        let mut paths = Paths::new(&params.prediction, keep.len());
+        for (k, &(row, _)) in keep.iter().enumerate() {
+            paths.path_mut(k).copy_from_slice(&samples.ec[row]);
+        }
+        KeepRows { accels: keep.iter().map(|k| k.1).collect(), paths, costs: costs.collect() }
     }
 
     /// Every path a side's tables read, EC's predicted for every action.
@@ -1162,8 +1221,12 @@ impl Situation {
     /// Each side's game (left, right) with its equilibrium (eq. 16c–f or 18c–f) and EC's
     /// cost there; `None` for a side where EC has no action.
     fn play(&self, game: Game, params: &DecisionParams, needs: Needs) -> [Option<(SideGame, Profile, f64)>; 2] {
+        let mut keeping: Option<KeepRows> = None;
         [-1, 1].map(|side| {
-            let side_game = self.side_game(side, params, needs);
+            let (ec_actions, ac_actions) = self.actions(side, params);
+            let (side_game, kept) =
+                self.side_game_keeping(side, ec_actions, ac_actions, params, needs, keeping.as_ref());
+            keeping = Some(kept);
             if side_game.ec_actions.is_empty() {
                 return None;
             }

@@ -497,10 +497,10 @@ impl World {
     fn decide(&mut self) {
         let mut decisions = std::mem::take(&mut self.decisions);
         decisions.clear();
-        let leaders = self.in_parallel(|world, index| !world.is_follower(index));
+        let mut leaders = self.in_parallel(|world, index| !world.is_follower(index));
         for index in 0..self.vehicles.len() {
-            let decision = match leaders.iter().find(|(i, ..)| *i == index) {
-                Some((_, decided, spent)) => self.clocked(index, decided.clone(), *spent),
+            let decision = match leaders.get_mut(index).and_then(Option::take) {
+                Some((decided, spent)) => self.clocked(index, decided, spent),
                 None if self.is_follower(index) => Decision::Accel(0.0),
                 None => self.decide_clocked(index),
             };
@@ -509,10 +509,10 @@ impl World {
             }
             decisions.push(decision);
         }
-        let followers = self.in_parallel(|world, index| world.is_follower(index));
+        let mut followers = self.in_parallel(|world, index| world.is_follower(index));
         for (index, decision) in decisions.iter_mut().enumerate() {
-            if let Some((_, decided, spent)) = followers.iter().find(|(i, ..)| *i == index) {
-                *decision = self.clocked(index, decided.clone(), *spent);
+            if let Some((decided, spent)) = followers.get_mut(index).and_then(Option::take) {
+                *decision = self.clocked(index, decided, spent);
             } else if self.is_follower(index) {
                 *decision = self.decide_clocked(index);
             }
@@ -593,33 +593,41 @@ impl World {
         std::mem::take(&mut self.explanations)
     }
 
-    /// The decisions of the game-theoretic cars that `pick` selects, made on up to
-    /// `decision_threads` threads when there are two or more of them (each reads the
-    /// scene only, so the bits do not depend on the threads); empty otherwise, and the
-    /// caller decides them in turn.
-    fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Vec<(usize, Decision, Duration)> {
+    /// The decisions of the vehicles that `pick` selects, by vehicle, with the wall time
+    /// each took: made on up to `decision_threads` threads when two or more of them are
+    /// game-theoretic cars (each decision reads the scene only, so the bits do not depend
+    /// on the threads); empty otherwise, and the caller decides them in turn.
+    fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Vec<Option<(Decision, Duration)>> {
         if self.decision_threads < 2 {
             return Vec::new();
         }
-        let mut gt: Vec<usize> = (0..self.vehicles.len())
-            .filter(|&i| self.vehicles[i].status == Status::Driving && matches!(self.vehicles[i].driver, Driver::Gt(_)))
-            .filter(|&i| pick(self, i))
-            .collect();
+        let is_gt =
+            |i: usize| self.vehicles[i].status == Status::Driving && matches!(self.vehicles[i].driver, Driver::Gt(_));
+        let (mut gt, others): (Vec<usize>, Vec<usize>) =
+            (0..self.vehicles.len()).filter(|&i| pick(self, i)).partition(|&i| is_gt(i));
         if gt.len() < 2 {
             return Vec::new();
         }
-        // Every thread takes the next car when it is done with one, the cars slowest to
-        // decide last period first, so that no thread is left with a slow car at the end.
+        // Every thread takes the next task when it is done with one: a game-theoretic car,
+        // the cars slowest to decide last period first, then all the other vehicles at
+        // once (IDM's decisions are cheap), so that no thread waits long for another's
+        // last car.
         gt.sort_by_key(|&i| std::cmp::Reverse(self.clock.last.get(i).copied().unwrap_or_default()));
         let next = AtomicUsize::new(0);
-        let decided: Vec<OnceLock<(Decision, Duration)>> = gt.iter().map(|_| OnceLock::new()).collect();
+        let decided: Vec<OnceLock<(Decision, Duration)>> = (0..self.vehicles.len()).map(|_| OnceLock::new()).collect();
+        let decide = |index: usize| {
+            let start = Instant::now();
+            let decision = self.decide_one(index);
+            let _ = decided[index].set((decision, start.elapsed()));
+        };
         let work = || {
             loop {
-                let k = next.fetch_add(1, Ordering::Relaxed);
-                let Some(&index) = gt.get(k) else { break };
-                let start = Instant::now();
-                let decision = self.decide_one(index);
-                let _ = decided[k].set((decision, start.elapsed()));
+                let task = next.fetch_add(1, Ordering::Relaxed);
+                match gt.get(task) {
+                    Some(&index) => decide(index),
+                    None if task == gt.len() => others.iter().for_each(|&index| decide(index)),
+                    None => break,
+                }
             }
         };
         // The calling thread decides too, beside helper threads: it does not sleep while
@@ -639,13 +647,7 @@ impl World {
                 rayon::in_place_scope(|scope| alongside(scope, helpers, &work));
             }
         }
-        gt.into_iter()
-            .zip(decided)
-            .map(|(index, slot)| {
-                let (decision, spent) = slot.into_inner().expect("the scope ends when every car is decided");
-                (index, decision, spent)
-            })
-            .collect()
+        decided.into_iter().map(OnceLock::into_inner).collect()
     }
 
     /// How many threads the game-theoretic cars of one control period may decide on

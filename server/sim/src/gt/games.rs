@@ -855,7 +855,8 @@ impl Situation {
                 }
             }
             Needs::Stackelberg(tolerance) => {
-                for row in table.rows_in_play() {
+                // Lane-keeping rows hold their one cost in every column already.
+                for row in table.rows_in_play().filter(|&row| ec_actions[row].1 != 0) {
                     let bound = follower_bound(table.ac(row, table.best_reply(row)), tolerance);
                     for col in (0..cols).filter(|&col| table.ac(row, col) <= bound) {
                         wanted[row * cols + col] = true;

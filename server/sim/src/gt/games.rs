@@ -791,9 +791,17 @@ impl Situation {
         // While EC keeps its lane, AC's cost does not depend on EC's action: one row of AC
         // costs serves all those rows.
         let mut keeping: Option<(Vec<f64>, usize)> = None;
+        // A lane-keeping row costing EC more than the best one, in every column, is
+        // neither its Stackelberg choice nor a Nash equilibrium and lowers no column's
+        // least cost: an equilibrium search skips it (a NaN cost is kept, as it compares).
+        let search = matches!(needs, Needs::Nash | Needs::Stackelberg(_));
+        let dominated = |row: usize| search && keep_costs[row].is_some_and(|own| own > keep_best);
         for (row, &(accel, sigma)) in ec_actions.iter().enumerate() {
             let against_keeping = sigma != 0 && prunes;
-            if unpredicted[row] || (against_keeping && self.ec_floor(&cell, row, accel, sigma) > keep_best) {
+            if unpredicted[row]
+                || dominated(row)
+                || (against_keeping && self.ec_floor(&cell, row, accel, sigma) > keep_best)
+            {
                 table.pruned[row] = true;
                 table.replies.push(0); // never read
                 continue;

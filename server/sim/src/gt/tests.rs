@@ -400,13 +400,14 @@ fn random_situation(next: &mut impl FnMut() -> f64) -> super::games::Situation {
 fn the_fast_search_decides_exactly_as_the_full_tables_do() {
     // The straightforward search fills both tables; the fast one computes EC's costs only
     // where the equilibrium search reads them, and no cell of a lane-change row whose
-    // cost floor exceeds a lane-keeping row's cost. Same decisions, bit for bit.
+    // cost floor exceeds a lane-keeping row's cost, nor of a lane-keeping row costing
+    // more than another. Same decisions, bit for bit.
     let mut seed = 2024u64;
     let mut next = || {
         seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         (seed >> 11) as f64 / (1u64 << 53) as f64
     };
-    let (mut lane_changes, mut pruned_all, mut pruned_some) = (0, 0, 0);
+    let (mut lane_changes, mut pruned_all, mut pruned_some, mut dominated) = (0, 0, 0, 0);
     for _ in 0..1500 {
         let situation = random_situation(&mut next);
         for (tolerance, lateral) in [(0.0, AdjacentLateral::Switched), (0.1, AdjacentLateral::Always)] {
@@ -419,12 +420,16 @@ fn the_fast_search_decides_exactly_as_the_full_tables_do() {
                 assert_eq!(fast, full, "{game:?}, tolerance {tolerance}: {situation:?}");
                 lane_changes += usize::from(fast.lane_change != LaneChange::Keep);
                 for side in [-1, 1] {
-                    let table = situation.side_game(side, &params, Needs::of(game, &params.game)).table;
-                    let changes =
-                        situation.side_game(side, &params, Needs::All).ec_actions.iter().filter(|a| a.1 != 0).count();
-                    let pruned = table.pruned.iter().filter(|&&p| p).count();
+                    let fast = situation.side_game(side, &params, Needs::of(game, &params.game));
+                    let pruned_where = |change: bool| {
+                        let rows = fast.ec_actions.iter().enumerate().filter(|(_, a)| (a.1 != 0) == change);
+                        let rows: Vec<usize> = rows.map(|(row, _)| row).collect();
+                        (rows.len(), rows.iter().filter(|&&row| fast.table.pruned[row]).count())
+                    };
+                    let (changes, pruned) = pruned_where(true);
                     pruned_all += usize::from(pruned > 0 && pruned == changes);
                     pruned_some += usize::from(pruned > 0 && pruned < changes);
+                    dominated += pruned_where(false).1;
                 }
             }
         }
@@ -433,6 +438,7 @@ fn the_fast_search_decides_exactly_as_the_full_tables_do() {
     // Of the 12 000 side games, about 3 300 prune every lane-change row and 3 100 some.
     let pruning = format!("{pruned_all} games pruned wholly, {pruned_some} partly");
     assert!(pruned_all > 1000 && pruned_some > 1000, "the situations exercise pruning: {pruning}");
+    assert!(dominated > 10_000, "lane-keeping rows are pruned too: {dominated}");
 }
 
 // Merging that completes (issue 23; docs/design.md, "Merging that completes").

@@ -603,11 +603,14 @@ impl World {
         }
         let is_gt =
             |i: usize| self.vehicles[i].status == Status::Driving && matches!(self.vehicles[i].driver, Driver::Gt(_));
-        let (mut gt, others): (Vec<usize>, Vec<usize>) =
-            (0..self.vehicles.len()).filter(|&i| pick(self, i)).partition(|&i| is_gt(i));
-        if gt.len() < 2 {
+        // Counted before anything is collected: a world with fewer than two (IDM traffic)
+        // allocates nothing here.
+        let picked = |i: &usize| pick(self, *i);
+        if (0..self.vehicles.len()).filter(|&i| is_gt(i)).filter(picked).nth(1).is_none() {
             return Vec::new();
         }
+        let (mut gt, others): (Vec<usize>, Vec<usize>) =
+            (0..self.vehicles.len()).filter(picked).partition(|&i| is_gt(i));
         // Every thread takes the next task when it is done with one: a game-theoretic car,
         // the cars slowest to decide last period first, then all the other vehicles at
         // once (IDM's decisions are cheap), so that no thread waits long for another's

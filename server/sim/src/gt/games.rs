@@ -439,7 +439,6 @@ struct Cell<'a> {
 
 /// One player's predicted paths, one per action, each of the horizon's samples, in one
 /// buffer: a side's game predicts up to 58 of them every control period.
-#[derive(Clone)]
 struct Paths {
     samples: Vec<Kinematics>,
     per_path: usize,
@@ -473,14 +472,13 @@ impl std::ops::Index<usize> for Paths {
     type Output = [Kinematics];
 
     fn index(&self, path: usize) -> &[Kinematics] {
-        &self.samples[path * self.per_path..(path + 1) * self.per_path]
+        self.get(path).expect("a path of the game")
     }
 }
 
 /// EC's lane-keeping rows of one side's game: their accelerations, predicted paths and
 /// EC's costs (`Situation::keep_rows`). They read neither side's AC, so the other side's
 /// game of the same decision takes them as they are.
-#[derive(Clone)]
 struct KeepRows {
     accels: Vec<f64>,
     paths: Paths,
@@ -741,7 +739,7 @@ impl Situation {
         ac_actions: Vec<f64>,
         params: &DecisionParams,
         needs: Needs,
-        shared: Option<&KeepRows>,
+        shared: Option<KeepRows>,
     ) -> (SideGame, KeepRows) {
         let option = self.option(side).copied();
         let mut samples = self.samples_but_ec(&ec_actions, &ac_actions, option.as_ref(), params);
@@ -892,11 +890,11 @@ impl Situation {
         samples: &mut Samples,
         option: Option<&LaneOption>,
         params: &DecisionParams,
-        shared: Option<&KeepRows>,
+        shared: Option<KeepRows>,
     ) -> KeepRows {
         let keep: Vec<(usize, f64)> =
             ec_actions.iter().enumerate().filter(|(_, action)| action.1 == 0).map(|(row, a)| (row, a.0)).collect();
-        let same = |shared: &&KeepRows| {
+        let same = |shared: &KeepRows| {
             shared.accels.len() == keep.len()
                 && keep.iter().zip(&shared.accels).all(|(k, a)| k.1.to_bits() == a.to_bits())
         };
@@ -904,7 +902,7 @@ impl Situation {
             for (k, &(row, _)) in keep.iter().enumerate() {
                 samples.ec.path_mut(row).copy_from_slice(&shared.paths[k]);
             }
-            return shared.clone();
+            return shared;
         }
         for &(row, accel) in &keep {
             self.predict_ec(samples, row, (accel, 0), params);
@@ -1233,8 +1231,7 @@ impl Situation {
         let mut keeping: Option<KeepRows> = None;
         [-1, 1].map(|side| {
             let (ec_actions, ac_actions) = self.actions(side, params);
-            let (side_game, kept) =
-                self.side_game_keeping(side, ec_actions, ac_actions, params, needs, keeping.as_ref());
+            let (side_game, kept) = self.side_game_keeping(side, ec_actions, ac_actions, params, needs, keeping.take());
             keeping = Some(kept);
             if side_game.ec_actions.is_empty() {
                 return None;

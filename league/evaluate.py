@@ -46,7 +46,12 @@ def learned(folder: pathlib.Path, scenario: str) -> dict:
         policies["bc"] = highway_arena.bc.load(bc)
     ppo = folder / f"ppo-{source}.zip"
     if ppo.exists():
-        from stable_baselines3 import PPO
+        try:
+            from stable_baselines3 import PPO
+        except ImportError:
+            raise SystemExit(
+                f"{ppo.name} needs Stable-Baselines3: pip install -r examples/requirements-ppo.txt"
+            ) from None
 
         from highway_arena.sb3 import sampled
 

@@ -182,6 +182,40 @@ async fn same_seed_same_replies_across_clients_other_seed_differs() {
     }
 }
 
+/// A server makes an env's next decisions while each step's reply travels
+/// (`Env::decide_ahead`); the next step uses them only if its actions left the learner's
+/// vehicle as it was. Idle steps, steps that change the vehicle and a snapshot between
+/// them: every reply and the snapshot are the bits the env gives in process, without.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_server_deciding_ahead_replies_the_bits_of_the_env_in_process() {
+    let harness = common::start().await;
+    let client = harness.client().await;
+    let options = CreateOptions { max_cycles: Some(60), ..Default::default() };
+    let mut remote = harness.env_with(&client, "highway-gt", options.clone()).await;
+    let scenario = arena_sim::builtin_scenario("highway-gt").expect("shipped").expect("loads");
+    let mut local = arena_server::env::Env::new(scenario, &options, 0).expect("env");
+    let reset = remote.reset(Some(5), vec![]).await.unwrap();
+    assert_eq!(reset.agents, local.reset(Some(5), &Default::default()).unwrap());
+    // Idle (1) mostly; lane changes (0, 2), faster (3) and slower (4) between.
+    let choices = [1, 1, 1, 3, 1, 1, 0, 1, 1, 4, 1, 2, 1, 1, 1];
+    let mut snapshots_compared = false;
+    for (k, &choice) in choices.iter().enumerate() {
+        let actions = meta("ego_0", choice);
+        let step = remote.step(actions.clone()).await.unwrap();
+        let expected = local.step(&actions).unwrap();
+        assert_eq!(encode(&step.steps), encode(&expected), "step {k} (action {choice})");
+        assert_eq!(step.agents, local.live_agents(), "step {k}");
+        if step.agents.is_empty() {
+            break;
+        }
+        if k == 7 {
+            assert_eq!(remote.snapshot().await.unwrap(), local.snapshot().unwrap(), "snapshot after step {k}");
+            snapshots_compared = true;
+        }
+    }
+    assert!(snapshots_compared, "the episode ended before the snapshot: pick another seed");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_client_cannot_touch_another_clients_env() {
     // Through a router, so that the intruder sees what other clients show of themselves

@@ -213,6 +213,37 @@ pub struct World {
     explanations: Vec<gt::Explanation>,
     /// Wall time spent deciding, per vehicle (`clock_decisions`).
     clock: DecisionClock,
+    /// The coming control instant's decisions, made early (`decide_ahead`).
+    ahead: Ahead,
+}
+
+/// Decisions made ahead of their control instant (`World::decide_ahead`), by vehicle,
+/// with the tick they are for. Not state: a world's copy, its snapshot and its equality
+/// ignore them, since they are what that tick would decide anyway.
+#[derive(Debug, Default)]
+struct Ahead(Option<(u64, Decided)>);
+
+/// Decisions of one control instant, by vehicle (`None`: not decided there), with the
+/// wall time each took.
+type Decided = Vec<Option<(Decision, Duration)>>;
+
+impl Ahead {
+    /// The decisions made for tick `ticks`, if any; none are kept after.
+    fn take_for(&mut self, ticks: u64) -> Option<Decided> {
+        self.0.take().filter(|(tick, _)| *tick == ticks).map(|(_, decided)| decided)
+    }
+}
+
+impl Clone for Ahead {
+    fn clone(&self) -> Ahead {
+        Ahead(None)
+    }
+}
+
+impl PartialEq for Ahead {
+    fn eq(&self, _: &Ahead) -> bool {
+        true
+    }
 }
 
 /// Wall time each vehicle's driver spent deciding: since it was last taken, a
@@ -255,6 +286,7 @@ impl World {
             explain: false,
             explanations: Vec::new(),
             clock: DecisionClock::default(),
+            ahead: Ahead::default(),
         }
     }
 
@@ -266,6 +298,7 @@ impl World {
         self.vehicles.push(vehicle);
         self.sort_along_road();
         self.scene_tick = None;
+        self.ahead = Ahead::default();
         VehicleId(self.vehicles.len() as u32 - 1)
     }
 
@@ -335,8 +368,11 @@ impl World {
         &self.vehicles[id.0 as usize]
     }
 
+    /// Every change to a vehicle between ticks comes through here: the scene drivers read
+    /// and the decisions made ahead from it are then out of date.
     pub(crate) fn vehicle_mut(&mut self, id: VehicleId) -> &mut Vehicle {
         self.scene_tick = None;
+        self.ahead = Ahead::default();
         &mut self.vehicles[id.0 as usize]
     }
 
@@ -403,8 +439,13 @@ impl World {
         step.command
     }
 
-    /// A learner's command for the coming periods.
+    /// A learner's command for the coming periods. Asking again for tracking, as every
+    /// meta action does, changes nothing, so it keeps the scene and the decisions made
+    /// ahead from it.
     pub fn command_agent(&mut self, id: VehicleId, command: AgentCommand) {
+        if command == AgentCommand::Track && self.vehicle(id).driver == Driver::Agent(AgentCommand::Track) {
+            return;
+        }
         self.vehicle_mut(id).driver = Driver::Agent(command);
     }
 
@@ -489,6 +530,7 @@ impl World {
         });
         self.scene.refresh(self.time, cars);
         self.scene_tick = Some(self.ticks);
+        self.ahead = Ahead::default();
     }
 
     /// Every driver picks its command for the coming control period from the scene:
@@ -497,7 +539,10 @@ impl World {
     fn decide(&mut self) {
         let mut decisions = std::mem::take(&mut self.decisions);
         decisions.clear();
-        let mut leaders = self.in_parallel(|world, index| !world.is_follower(index));
+        let mut leaders = match self.ahead.take_for(self.ticks) {
+            Some(decided) => decided,
+            None => self.in_parallel(|world, index| !world.is_follower(index)),
+        };
         for index in 0..self.vehicles.len() {
             let decision = match leaders.get_mut(index).and_then(Option::take) {
                 Some((decided, spent)) => self.clocked(index, decided, spent),
@@ -524,6 +569,39 @@ impl World {
             self.apply(VehicleId(index as u32), decision);
         }
         self.decisions = decisions;
+    }
+
+    /// Makes the coming control instant's decisions now, while the world waits for its
+    /// learners' actions (a server calls it once a step's reply is on its way), for every
+    /// vehicle whose decision cannot read those actions: all but the learners and the
+    /// game-theoretic followers, who read what the learners announce. They need the
+    /// scene of this instant, taken already (an env samples its agents' costs from it at
+    /// the end of each step); without it nothing is done.
+    /// The instant's `tick` uses them when nothing they read has changed since: every
+    /// change to a vehicle (`vehicle_mut`, `add`, `restore`) and every new scene discards
+    /// them, and a decision reads only the scene, its own vehicle and the clock. So the
+    /// world runs the same bits with or without them; a learner's action that changes its
+    /// vehicle (a lane change, a new target speed or acceleration) only costs the work
+    /// done ahead.
+    pub fn decide_ahead(&mut self) {
+        let at_instant = self.ticks.is_multiple_of(self.params.substeps_per_control());
+        if !at_instant || self.scene_tick != Some(self.ticks) {
+            return;
+        }
+        let pick = |world: &World, index: usize| {
+            !world.is_follower(index) && !matches!(world.vehicles[index].driver, Driver::Agent(_))
+        };
+        // IDM traffic alone decides in a few microseconds: not worth a buffer.
+        let is_gt = |index: usize| matches!(self.vehicles[index].driver, Driver::Gt(_));
+        if !(0..self.vehicles.len()).any(|index| is_gt(index) && pick(self, index)) {
+            return;
+        }
+        let mut decided = self.in_parallel(pick);
+        if decided.is_empty() {
+            decided =
+                (0..self.vehicles.len()).map(|index| pick(self, index).then(|| self.decide_timed(index))).collect();
+        }
+        self.ahead = Ahead(Some((self.ticks, decided)));
     }
 
     /// `decide_one`, its wall time added to the vehicle's clock when the clock is on.
@@ -597,7 +675,7 @@ impl World {
     /// each took: made on up to `decision_threads` threads when two or more of them are
     /// game-theoretic cars (each decision reads the scene only, so the bits do not depend
     /// on the threads); empty otherwise, and the caller decides them in turn.
-    fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Vec<Option<(Decision, Duration)>> {
+    fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync) -> Decided {
         if self.decision_threads < 2 {
             return Vec::new();
         }

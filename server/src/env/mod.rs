@@ -331,6 +331,18 @@ impl Env {
         Ok(steps)
     }
 
+    /// Makes the next step's first decisions now (`World::decide_ahead`), while its
+    /// actions are on their way: a server calls it once a step's reply is sent. The next
+    /// step takes them when its actions leave the vehicles as they were, and makes them
+    /// again otherwise; its results are the same bits either way.
+    pub fn decide_ahead(&mut self) {
+        if self.agents.iter().any(|a| a.live)
+            && let Some(world) = self.world.as_mut()
+        {
+            world.decide_ahead();
+        }
+    }
+
     /// Checks `actions` and keeps each live agent's in `scratch.chosen`. An action for an
     /// agent that has finished is ignored, as PettingZoo's own conversions do; an unknown
     /// agent, an action outside its space or two for one agent refuse the step.

@@ -20,7 +20,7 @@ use zenoh::Wait;
 use zenoh::sample::SampleKind;
 
 pub use limits::{Limits, ORPHAN_GRACE};
-pub use registry::Registry;
+pub use registry::{Ahead, Registry};
 pub use scenarios::Scenarios;
 
 use memory::return_freed_memory;
@@ -84,17 +84,23 @@ impl Server {
             .declare_queryable(rpc)
             .callback(move |query| {
                 let open = gate.read().unwrap_or_else(|poisoned| poisoned.into_inner());
-                let answer = if *open {
+                let (answer, ahead) = if *open {
                     let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
                     let user = keys::rpc_user(&rpc_prefix, &rpc_server, query.key_expr().as_str());
-                    handler.handle_from(user.as_deref(), &bytes)
+                    handler.handle_then(user.as_deref(), &bytes)
                 } else {
-                    shutting_down.clone()
+                    (shutting_down.clone(), None)
                 };
                 if let Err(e) = query.reply(query.key_expr().clone(), answer).wait() {
                     eprintln!("arena-server: could not send a reply: {e}");
                 }
+                drop(query);
                 drop(open);
+                // While the reply travels and the client picks its next actions, this
+                // env's next decisions are made; its next request waits for them.
+                if let Some(ahead) = ahead {
+                    ahead.run();
+                }
             })
             .await?;
 

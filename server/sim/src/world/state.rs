@@ -108,6 +108,7 @@ impl World {
         // lane found again from its position, which gives the lane it has).
         self.scene.refresh(scene_time, scene_cars.into_iter());
         self.scene_tick = scene_tick;
+        self.ahead = super::Ahead::default();
         Ok(())
     }
 

@@ -246,3 +246,73 @@ fn game_theoretic_cars_deciding_on_several_threads_give_the_same_bits_as_in_turn
     assert_eq!(alone, run(2));
     assert_eq!(alone, run(3));
 }
+
+/// highway-gt's world of seed 4 run for 60 control periods, its learner tracking its
+/// targets (asked again every period, as meta actions do), moving to another lane in
+/// periods 3, 13, ... and to another target speed in periods 7, 17, ...: every vehicle's
+/// state at the end of each period. Before each period the scene is taken, as an env's
+/// cost sampling takes it; `before_tick` runs next, given the period, ahead of the
+/// learner's command.
+fn learner_periods(before_tick: &dyn Fn(&mut World, usize)) -> Vec<Vec<u64>> {
+    let text = crate::scenario::BUILTIN_SCENARIOS.iter().find(|(name, ..)| *name == "highway-gt").unwrap().2;
+    let mut world = Scenario::parse("highway-gt.toml", text, &[]).unwrap().build(4);
+    let ego = world.find("ego_0").expect("highway-gt's learner");
+    let mut periods = Vec::new();
+    for period in 0..60 {
+        world.scene();
+        before_tick(&mut world, period);
+        world.command_agent(ego, AgentCommand::Track);
+        match period % 10 {
+            3 => {
+                let lane = if world.current_lane(ego).0 == 0 { 1 } else { 0 };
+                world.change_lane(ego, LaneId(lane));
+            }
+            7 => {
+                let speed = world.vehicle(ego).target_speed;
+                world.set_target_speed(ego, if speed > 25.0 { 20.0 } else { 30.0 });
+            }
+            _ => {}
+        }
+        for _ in 0..world.params().substeps_per_control() {
+            world.tick();
+        }
+        periods.push(state_bits(&world));
+    }
+    periods
+}
+
+/// Puts a made-up acceleration in place of every decision made ahead.
+fn spoil_decisions_made_ahead(world: &mut World) {
+    let (_, decided) = world.ahead.0.as_mut().expect("decisions were made ahead");
+    for (decision, _) in decided.iter_mut().flatten() {
+        *decision = Decision::Accel(-3.0);
+    }
+}
+
+#[test]
+fn decisions_made_ahead_are_the_ones_their_tick_makes_and_dropped_when_a_vehicle_changes() {
+    let reference = learner_periods(&|_, _| {});
+    let ahead = learner_periods(&|world, _| world.decide_ahead());
+    assert_eq!(ahead, reference, "deciding ahead changed the world");
+    // They are what the tick uses: made-up ones in their place change the world...
+    let kept = learner_periods(&|world, period| {
+        world.decide_ahead();
+        if period == 20 {
+            spoil_decisions_made_ahead(world);
+        }
+    });
+    assert_eq!(kept[..20], reference[..20]);
+    assert_ne!(kept[20], reference[20], "the tick did not use the decisions made ahead");
+    // ... unless the learner's vehicle changed in between, or a state was restored.
+    let dropped = learner_periods(&|world, period| {
+        world.decide_ahead();
+        if period % 10 == 3 || period % 10 == 7 {
+            spoil_decisions_made_ahead(world);
+        }
+        if period == 20 {
+            spoil_decisions_made_ahead(world);
+            world.restore(world.state()).expect("its own state");
+        }
+    });
+    assert_eq!(dropped, reference, "decisions made ahead outlived a change they depend on");
+}

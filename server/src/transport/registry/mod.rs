@@ -37,6 +37,18 @@ struct Slot {
     last_used: Instant,
 }
 
+/// An env's decisions to make ahead once a step's reply is sent (`Registry::handle_then`).
+pub struct Ahead(Arc<Mutex<Slot>>);
+
+impl Ahead {
+    /// Makes them; a panic in it closes nothing and is not the server's end: the env's
+    /// next request meets whatever it left, as a step that panicked would.
+    pub fn run(self) {
+        let mut slot = lock(&self.0);
+        let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| slot.env.decide_ahead()));
+    }
+}
+
 /// Every env of one server.
 pub struct Registry {
     server_id: String,
@@ -123,11 +135,18 @@ impl Registry {
     /// Answers one request that came as `user` (named by its key, which only a site's
     /// access control makes trustworthy): its envs count against that user's limit.
     pub fn handle_from(&self, user: Option<&str>, bytes: &[u8]) -> Vec<u8> {
-        let body = self.answer(user, bytes).unwrap_or_else(ReplyBody::Error);
-        encode(&Reply { version: PROTOCOL_VERSION, body })
+        self.handle_then(user, bytes).0
     }
 
-    fn answer(&self, user: Option<&str>, bytes: &[u8]) -> Result<ReplyBody, ErrorReply> {
+    /// `handle_from`, and for a single step whose episode goes on, the work that may start
+    /// once its reply is sent: the env's next decisions (`Env::decide_ahead`).
+    pub fn handle_then(&self, user: Option<&str>, bytes: &[u8]) -> (Vec<u8>, Option<Ahead>) {
+        let mut ahead = None;
+        let body = self.answer(user, bytes, &mut ahead).unwrap_or_else(ReplyBody::Error);
+        (encode(&Reply { version: PROTOCOL_VERSION, body }), ahead)
+    }
+
+    fn answer(&self, user: Option<&str>, bytes: &[u8], ahead: &mut Option<Ahead>) -> Result<ReplyBody, ErrorReply> {
         if bytes.len() > MAX_MESSAGE_BYTES {
             return Err(error(
                 ErrorCode::PayloadTooLarge,
@@ -155,8 +174,15 @@ impl Registry {
                 let agents = env.reset(seed, &options)?;
                 Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.world_start().map(Box::new) }))
             }),
-            RequestBody::Step { env, seq, actions } => {
-                self.sequenced(client, env, seq, |env| self.step_reply(env, seq, &actions).map(ReplyBody::Step))
+            RequestBody::Step { env: id, seq, actions } => {
+                let reply =
+                    self.sequenced(client, id, seq, |env| self.step_reply(env, seq, &actions).map(ReplyBody::Step));
+                if let Ok(ReplyBody::Step(step)) = &reply
+                    && !step.agents.is_empty()
+                {
+                    *ahead = self.slot(client, id).ok().map(Ahead);
+                }
+                reply
             }
             RequestBody::StepBatch { steps } => {
                 self.check_batch(&steps)?;

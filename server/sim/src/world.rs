@@ -696,17 +696,19 @@ impl World {
         gt.sort_by_key(|&i| std::cmp::Reverse(self.clock.last.get(i).copied().unwrap_or_default()));
         let next = AtomicUsize::new(0);
         let decided: Vec<OnceLock<(Decision, Duration)>> = (0..self.vehicles.len()).map(|_| OnceLock::new()).collect();
-        let decide = |index: usize| {
-            let start = Instant::now();
+        // The game-theoretic cars' times order the next period's tasks; the others' are
+        // read only by a clock that is on.
+        let decide = |index: usize, timed: bool| {
+            let start = timed.then(Instant::now);
             let decision = self.decide_one(index);
-            let _ = decided[index].set((decision, start.elapsed()));
+            let _ = decided[index].set((decision, start.map_or(Duration::ZERO, |start| start.elapsed())));
         };
         let work = || {
             loop {
                 let task = next.fetch_add(1, Ordering::Relaxed);
                 match gt.get(task) {
-                    Some(&index) => decide(index),
-                    None if task == gt.len() => others.iter().for_each(|&index| decide(index)),
+                    Some(&index) => decide(index, true),
+                    None if task == gt.len() => others.iter().for_each(|&index| decide(index, self.clock.on)),
                     None => break,
                 }
             }

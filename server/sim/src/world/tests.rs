@@ -247,15 +247,16 @@ fn game_theoretic_cars_deciding_on_several_threads_give_the_same_bits_as_in_turn
     assert_eq!(alone, run(3));
 }
 
-/// highway-gt's world of seed 4 run for 60 control periods, its learner tracking its
-/// targets (asked again every period, as meta actions do), moving to another lane in
-/// periods 3, 13, ... and to another target speed in periods 7, 17, ...: every vehicle's
-/// state at the end of each period. Before each period the scene is taken, as an env's
-/// cost sampling takes it; `before_tick` runs next, given the period, ahead of the
-/// learner's command.
-fn learner_periods(before_tick: &dyn Fn(&mut World, usize)) -> Vec<Vec<u64>> {
+/// highway-gt's world of seed 4 on `threads` decision threads run for 60 control
+/// periods, its learner tracking its targets (asked again every period, as meta actions
+/// do), moving to another lane in periods 3, 13, ... and to another target speed in
+/// periods 7, 17, ...: every vehicle's state at the end of each period. Before each
+/// period the scene is taken, as an env's cost sampling takes it; `before_tick` runs
+/// next, given the period, ahead of the learner's command.
+fn learner_periods(threads: usize, before_tick: &dyn Fn(&mut World, usize)) -> Vec<Vec<u64>> {
     let text = crate::scenario::BUILTIN_SCENARIOS.iter().find(|(name, ..)| *name == "highway-gt").unwrap().2;
     let mut world = Scenario::parse("highway-gt.toml", text, &[]).unwrap().build(4);
+    world.set_decision_threads(threads);
     let ego = world.find("ego_0").expect("highway-gt's learner");
     let mut periods = Vec::new();
     for period in 0..60 {
@@ -291,11 +292,14 @@ fn spoil_decisions_made_ahead(world: &mut World) {
 
 #[test]
 fn decisions_made_ahead_are_the_ones_their_tick_makes_and_dropped_when_a_vehicle_changes() {
-    let reference = learner_periods(&|_, _| {});
-    let ahead = learner_periods(&|world, _| world.decide_ahead());
-    assert_eq!(ahead, reference, "deciding ahead changed the world");
+    let reference = learner_periods(1, &|_, _| {});
+    // Made ahead on one thread fewer than the tick's: in turn with 2, in parallel with 3.
+    for threads in [2, 3] {
+        let ahead = learner_periods(threads, &|world, _| world.decide_ahead());
+        assert_eq!(ahead, reference, "deciding ahead on {threads} threads changed the world");
+    }
     // They are what the tick uses: made-up ones in their place change the world...
-    let kept = learner_periods(&|world, period| {
+    let kept = learner_periods(2, &|world, period| {
         world.decide_ahead();
         if period == 20 {
             spoil_decisions_made_ahead(world);
@@ -304,7 +308,7 @@ fn decisions_made_ahead_are_the_ones_their_tick_makes_and_dropped_when_a_vehicle
     assert_eq!(kept[..20], reference[..20]);
     assert_ne!(kept[20], reference[20], "the tick did not use the decisions made ahead");
     // ... unless the learner's vehicle changed in between, or a state was restored.
-    let dropped = learner_periods(&|world, period| {
+    let dropped = learner_periods(3, &|world, period| {
         world.decide_ahead();
         if period % 10 == 3 || period % 10 == 7 {
             spoil_decisions_made_ahead(world);

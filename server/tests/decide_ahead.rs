@@ -45,3 +45,39 @@ fn only_a_step_whose_episode_goes_on_is_followed_by_decisions_made_ahead() {
     let unknown = RequestBody::Step { env: EnvId(7), seq: 1, actions: vec![] };
     assert!(matches!(ask(&registry, unknown), (ReplyBody::Error(_), false)));
 }
+
+#[test]
+fn an_env_whose_decisions_are_made_ahead_steps_as_one_whose_are_not() {
+    let registry = Registry::new("ahead".into(), Scenarios::load(None).expect("built-in scenarios"), Limits::default());
+    let create = || RequestBody::CreateEnv {
+        scenario: ScenarioSource::Named("highway-gt".into()),
+        options: CreateOptions::default(),
+    };
+    let (ReplyBody::Created { env: ahead, .. }, _) = ask(&registry, create()) else { panic!("created") };
+    let (ReplyBody::Created { env: plain, .. }, _) = ask(&registry, create()) else { panic!("created") };
+    for env in [ahead, plain] {
+        let reset = RequestBody::Reset { env, seq: 1, seed: Some(9), options: ResetOptions::default() };
+        assert!(matches!(ask(&registry, reset), (ReplyBody::Reset(_), false)));
+    }
+    let mut made = 0;
+    for seq in 2..14 {
+        let (bytes, work) =
+            registry.handle_then(None, &request(RequestBody::Step { env: ahead, seq, actions: vec![] }));
+        if let Some(work) = work {
+            registry.decide_ahead(work);
+            made += 1;
+        }
+        let (expected, _) =
+            registry.handle_then(None, &request(RequestBody::Step { env: plain, seq, actions: vec![] }));
+        let (ReplyBody::Step(got), ReplyBody::Step(want)) =
+            (decode::<Reply>(&bytes).unwrap().body, decode::<Reply>(&expected).unwrap().body)
+        else {
+            panic!("step {seq} was refused");
+        };
+        assert_eq!(encode(&got.steps), encode(&want.steps), "step {seq}");
+        if got.agents.is_empty() {
+            break;
+        }
+    }
+    assert!(made >= 3, "decisions were made ahead {made} times: too few steps to compare");
+}

@@ -40,5 +40,5 @@ pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 pub use traffic::{IdmParams, speed_control};
 pub use world::{
     AgentCommand, AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver, Ending, LEARNER_SPEED_FACTOR, LaneEntry,
-    RngState, StateError, Vehicle, World, WorldParams, WorldState,
+    RngState, StateError, Vehicle, World, WorldParams, WorldState, beside_decisions,
 };

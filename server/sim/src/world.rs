@@ -539,9 +539,23 @@ impl World {
     fn decide(&mut self) {
         let mut decisions = std::mem::take(&mut self.decisions);
         decisions.clear();
+        let threads = self.decision_threads;
         let mut leaders = match self.ahead.take_for(self.ticks) {
-            Some(decided) => decided,
-            None => self.in_parallel(|world, index| !world.is_follower(index), self.decision_threads),
+            Some(mut made) => {
+                // Made ahead, perhaps not all of them (`decide_ahead` stops when asked): the
+                // rest now.
+                let missing = |world: &World, index: usize| {
+                    !world.is_follower(index) && made.get(index).is_none_or(Option::is_none)
+                };
+                let rest = self.in_parallel(missing, threads, &|| false);
+                for (slot, decided) in made.iter_mut().zip(rest) {
+                    if slot.is_none() {
+                        *slot = decided;
+                    }
+                }
+                made
+            }
+            None => self.in_parallel(|world, index| !world.is_follower(index), threads, &|| false),
         };
         for index in 0..self.vehicles.len() {
             let decision = match leaders.get_mut(index).and_then(Option::take) {
@@ -554,7 +568,7 @@ impl World {
             }
             decisions.push(decision);
         }
-        let mut followers = self.in_parallel(|world, index| world.is_follower(index), self.decision_threads);
+        let mut followers = self.in_parallel(|world, index| world.is_follower(index), threads, &|| false);
         for (index, decision) in decisions.iter_mut().enumerate() {
             if let Some((decided, spent)) = followers.get_mut(index).and_then(Option::take) {
                 *decision = self.clocked(index, decided, spent);
@@ -583,9 +597,12 @@ impl World {
     /// world runs the same bits with or without them; a learner's action that changes its
     /// vehicle (a lane change, a new target speed or acceleration) only costs the work
     /// done ahead.
-    pub fn decide_ahead(&mut self) {
+    /// It stops, keeping what it decided, when `stop` says so (the next request has come):
+    /// the tick decides the rest.
+    pub fn decide_ahead(&mut self, stop: &(dyn Fn() -> bool + Sync)) {
         let at_instant = self.ticks.is_multiple_of(self.params.substeps_per_control());
-        if !at_instant || self.scene_tick != Some(self.ticks) {
+        let made = self.ahead.0.as_ref().is_some_and(|(tick, _)| *tick == self.ticks);
+        if !at_instant || self.scene_tick != Some(self.ticks) || made {
             return;
         }
         let pick = |world: &World, index: usize| {
@@ -599,10 +616,18 @@ impl World {
         // One thread fewer than a tick uses: the reply's way out and the client's way back
         // run meanwhile and need a core. On two cores these decisions then take about
         // 320 µs on one thread and end about 85 µs before the next request arrives.
-        let mut decided = self.in_parallel(pick, self.decision_threads - 1);
+        let mut decided = self.in_parallel(pick, self.decision_threads - 1, stop);
         if decided.is_empty() {
-            decided =
-                (0..self.vehicles.len()).map(|index| pick(self, index).then(|| self.decide_timed(index))).collect();
+            // In turn, the game-theoretic cars first: they are most of the work.
+            let mut order: Vec<usize> = (0..self.vehicles.len()).filter(|&index| pick(self, index)).collect();
+            order.sort_by_key(|&index| !is_gt(index));
+            decided = vec![None; self.vehicles.len()];
+            for index in order {
+                if stop() {
+                    break;
+                }
+                decided[index] = Some(self.decide_timed(index));
+            }
         }
         self.ahead = Ahead(Some((self.ticks, decided)));
     }
@@ -677,8 +702,14 @@ impl World {
     /// The decisions of the vehicles that `pick` selects, by vehicle, with the wall time
     /// each took: made on up to `threads` threads when two or more of them are
     /// game-theoretic cars (each decision reads the scene only, so the bits do not depend
-    /// on the threads); empty otherwise, and the caller decides them in turn.
-    fn in_parallel(&self, pick: impl Fn(&World, usize) -> bool + Sync, threads: usize) -> Decided {
+    /// on the threads); empty otherwise, and the caller decides them in turn. No task starts
+    /// once `stop` says so; those not started are `None`.
+    fn in_parallel(
+        &self,
+        pick: impl Fn(&World, usize) -> bool + Sync,
+        threads: usize,
+        stop: &(dyn Fn() -> bool + Sync),
+    ) -> Decided {
         if threads < 2 {
             return Vec::new();
         }
@@ -707,7 +738,7 @@ impl World {
             let _ = decided[index].set((decision, start.map_or(Duration::ZERO, |start| start.elapsed())));
         };
         let work = || {
-            loop {
+            while !stop() {
                 let task = next.fetch_add(1, Ordering::Relaxed);
                 match gt.get(task) {
                     Some(&index) => decide(index, true),
@@ -992,6 +1023,20 @@ fn keep_warm(pool: &rayon::ThreadPool) {
                 std::hint::spin_loop();
             }
         });
+    }
+}
+
+/// Runs `job` on the decision pool's thread, which is still spinning from the last
+/// control period and so starts it at once (`World::decide_ahead` while a reply
+/// travels); here if the process has no pool (one core).
+pub fn beside_decisions(job: impl FnOnce() + Send + 'static) {
+    match decision_pool() {
+        Some(pool) => {
+            // Ends the spin it would otherwise wait behind.
+            SECTIONS.fetch_add(1, Ordering::Relaxed);
+            pool.spawn(job);
+        }
+        None => job(),
     }
 }
 

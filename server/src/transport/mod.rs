@@ -6,6 +6,7 @@
 //! Closing drains: the requests being answered finish and are replied to; later ones are
 //! told `ShuttingDown` at once, so no client waits out its timeout on a server that left.
 //! Memory freed when clients leave is handed back to the system here (`memory::return_freed_memory`).
+//! Once a step's reply is sent, the env's next decisions are made beside (`Registry::decide_ahead`).
 
 mod limits;
 mod memory;
@@ -97,9 +98,11 @@ impl Server {
                 drop(query);
                 drop(open);
                 // While the reply travels and the client picks its next actions, this
-                // env's next decisions are made; its next request waits for them.
+                // env's next decisions are made on another thread: this one receives the
+                // next request, which stops them.
                 if let Some(ahead) = ahead {
-                    ahead.run();
+                    let registry = Arc::clone(&handler);
+                    arena_sim::beside_decisions(move || registry.decide_ahead(ahead));
                 }
             })
             .await?;

@@ -293,14 +293,22 @@ fn spoil_decisions_made_ahead(world: &mut World) {
 #[test]
 fn decisions_made_ahead_are_the_ones_their_tick_makes_and_dropped_when_a_vehicle_changes() {
     let reference = learner_periods(1, &|_, _| {});
-    // Made ahead on one thread fewer than the tick's: in turn with 2, in parallel with 3.
+    // Made ahead on one thread fewer than the tick's: in turn with 2, in parallel with 3;
+    // all of them, or the first few when told to stop (the tick decides the rest).
     for threads in [2, 3] {
-        let ahead = learner_periods(threads, &|world, _| world.decide_ahead());
+        let ahead = learner_periods(threads, &|world, _| world.decide_ahead(&|| false));
         assert_eq!(ahead, reference, "deciding ahead on {threads} threads changed the world");
+        let partly = learner_periods(threads, &|world, _| {
+            let asked = AtomicUsize::new(0);
+            world.decide_ahead(&|| asked.fetch_add(1, Ordering::Relaxed) >= 3);
+            let (_, decided) = world.ahead.0.as_ref().expect("some were made");
+            assert!(decided.iter().flatten().count() < 10, "it stops when told to");
+        });
+        assert_eq!(partly, reference, "deciding part ahead on {threads} threads changed the world");
     }
     // They are what the tick uses: made-up ones in their place change the world...
     let kept = learner_periods(2, &|world, period| {
-        world.decide_ahead();
+        world.decide_ahead(&|| false);
         if period == 20 {
             spoil_decisions_made_ahead(world);
         }
@@ -309,7 +317,7 @@ fn decisions_made_ahead_are_the_ones_their_tick_makes_and_dropped_when_a_vehicle
     assert_ne!(kept[20], reference[20], "the tick did not use the decisions made ahead");
     // ... unless the learner's vehicle changed in between, or a state was restored.
     let dropped = learner_periods(3, &|world, period| {
-        world.decide_ahead();
+        world.decide_ahead(&|| false);
         if period % 10 == 3 || period % 10 == 7 {
             spoil_decisions_made_ahead(world);
         }

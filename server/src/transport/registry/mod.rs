@@ -9,7 +9,7 @@ mod sequence;
 
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
 use std::time::Instant;
 
 use arena_protocol::{
@@ -37,17 +37,9 @@ struct Slot {
     last_used: Instant,
 }
 
-/// An env's decisions to make ahead once a step's reply is sent (`Registry::handle_then`).
+/// An env's decisions to make ahead once a step's reply is sent (`Registry::handle_then`,
+/// `Registry::decide_ahead`).
 pub struct Ahead(Arc<Mutex<Slot>>);
-
-impl Ahead {
-    /// Makes them; a panic in it closes nothing and is not the server's end: the env's
-    /// next request meets whatever it left, as a step that panicked would.
-    pub fn run(self) {
-        let mut slot = lock(&self.0);
-        let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| slot.env.decide_ahead()));
-    }
-}
 
 /// Every env of one server.
 pub struct Registry {
@@ -144,6 +136,23 @@ impl Registry {
         let mut ahead = None;
         let body = self.answer(user, bytes, &mut ahead).unwrap_or_else(ReplyBody::Error);
         (encode(&Reply { version: PROTOCOL_VERSION, body }), ahead)
+    }
+
+    /// Makes `ahead`'s decisions (`Env::decide_ahead`) until a single step or reset is
+    /// being answered: that request then waits for one decision at most, not for all of
+    /// them. Call it off the thread that receives requests. It never waits for the env:
+    /// one in use is being stepped (and a step's parallel decisions may need the very
+    /// thread this runs on). A panic in it closes nothing: the env's next request meets
+    /// whatever it left, as a step that panicked would.
+    pub fn decide_ahead(&self, ahead: Ahead) {
+        let answering = || self.singles.load(Ordering::SeqCst) > 0;
+        let mut slot = match ahead.0.try_lock() {
+            _ if answering() => return,
+            Ok(slot) => slot,
+            Err(TryLockError::Poisoned(poisoned)) => poisoned.into_inner(),
+            Err(TryLockError::WouldBlock) => return,
+        };
+        let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| slot.env.decide_ahead(&answering)));
     }
 
     fn answer(&self, user: Option<&str>, bytes: &[u8], ahead: &mut Option<Ahead>) -> Result<ReplyBody, ErrorReply> {

@@ -10,7 +10,8 @@ size on 2 threads.
 
 Without --connect it launches its own arena-server (the --binary given, else the one
 highway_arena.launch_server finds). Every policy is `idle` (meta action 1, as in
-highway-env). Prints a table, or JSON with --json.
+highway-env); with --actions random the single env's actions are drawn from its action
+spaces (seeded). Prints a table, or JSON with --json.
 """
 
 from __future__ import annotations
@@ -23,15 +24,22 @@ import time
 import highway_arena
 
 
-def single(where: dict, scenario: str, seconds: float) -> tuple:
-    """(simulated s per wall s, median step time in µs) of one env stepped alone."""
+def single(where: dict, scenario: str, seconds: float, actions: str = "idle") -> tuple:
+    """(simulated s per wall s, median step time in µs) of one env stepped alone, with
+    idle actions or, with ``actions="random"``, actions sampled from its spaces (seeded)."""
     env = highway_arena.parallel_env(scenario, **where)
     env.reset(seed=0)
+    for k, agent in enumerate(env.possible_agents):
+        env.action_space(agent).seed(k)
+
+    def act(agent):
+        return env.action_space(agent).sample() if actions == "random" else 1
+
     steps, episodes, times = 0, 0, []
     started = time.perf_counter()
     while time.perf_counter() - started < seconds:
         before = time.perf_counter()
-        env.step({agent: 1 for agent in env.agents})
+        env.step({agent: act(agent) for agent in env.agents})
         times.append(time.perf_counter() - before)
         steps += 1
         if not env.agents:
@@ -109,6 +117,12 @@ def main() -> int:
         help="a scenario override for every env, e.g. 'vehicle.ac.driver={ kind = \"idm\", style = \"normal\" }' "
         "(repeatable; VALUE as in a scenario file's TOML)",
     )
+    parser.add_argument(
+        "--actions",
+        choices=["idle", "random"],
+        default="idle",
+        help="the single env's actions: idle (meta action 1, the default) or drawn from its action spaces, seeded",
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--vs-envpool", action="store_true", help="also measure EnvPool's Highway-v0 (pip install envpool)")
     args = parser.parse_args()
@@ -132,7 +146,9 @@ def main() -> int:
             where["overrides"] = overrides
         figures = {"single_sim_s_per_s": None, "single_step_p50_us": None, "batch": {}, "vector": {}}
         print("one env through the PettingZoo API ...", file=sys.stderr)
-        figures["single_sim_s_per_s"], figures["single_step_p50_us"] = single(where, args.scenario, args.seconds)
+        figures["single_sim_s_per_s"], figures["single_step_p50_us"] = single(
+            where, args.scenario, args.seconds, args.actions
+        )
         for size in sizes:
             print(f"batch of {size} envs ...", file=sys.stderr)
             figures["batch"][str(size)] = batched(where, args.scenario, size, args.seconds)
@@ -151,12 +167,13 @@ def main() -> int:
         with highway_arena.launch_server(binary=args.binary) as server:
             figures = run(server.endpoint)
     if args.json:
-        print(json.dumps({"scenario": args.scenario, **figures}, indent=2))
+        print(json.dumps({"scenario": args.scenario, "actions": args.actions, **figures}, indent=2))
     else:
         print(f"scenario {args.scenario}:")
         print(
             f"one env:            {figures['single_sim_s_per_s']:9.1f} simulated s per wall s"
-            f" (step p50 {figures['single_step_p50_us']:.0f} µs)"
+            f" (step p50 {figures['single_step_p50_us']:.0f} µs"
+            + (", random actions)" if args.actions == "random" else ")")
         )
         for size, rate in figures["batch"].items():
             print(f"batch of {size:>3}:       {rate:9.1f} simulated s per wall s")

@@ -5,7 +5,9 @@
 //! collisions. Drivers decide in two rounds: everyone but the game-theoretic followers,
 //! then those followers, who answer their leaders' decisions of this period. Results
 //! depend on roles, never on the order of vehicles in a file. Neighbour queries and
-//! collision checks use sorted orders, so a tick costs O(n) for n vehicles.
+//! collision checks use sorted orders, so a tick costs O(n) for n vehicles. A server may
+//! make the next control instant's decisions while it waits for the learners' actions
+//! (`decide_ahead`); the tick takes them only if nothing they read has changed.
 
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};

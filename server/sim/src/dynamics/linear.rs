@@ -87,6 +87,11 @@ pub fn linearise(
     Linearisation { a, b, offset }
 }
 
+/// The largest 1-norm of [[A, B, c], [0, 0, 0]] dT `discretise` takes: a vehicle's is
+/// below 20 in the shipped scenarios (its entries are gains over time constants of tenths of a second, times
+/// dT); past 1e12 the state it came from has blown up (or came so from outside).
+pub const MAX_MODEL_NORM: f64 = 1e12;
+
 /// The discrete model of eq. (24): x(k+1) = A_k x(k) + B_k u(k) + c_k.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Discretisation {
@@ -107,6 +112,20 @@ impl Linearisation {
         augmented.fixed_view_mut::<STATES, STATES>(0, 0).copy_from(&(self.a * dt));
         augmented.fixed_view_mut::<STATES, INPUTS>(0, STATES).copy_from(&(self.b * dt));
         augmented.fixed_view_mut::<STATES, 1>(0, STATES + INPUTS).copy_from(&(self.offset * dt));
+        // nalgebra squares the exponential about log2 of the matrix's norm times: an
+        // infinite entry would make that 2^64 times (a server held forever by one bad
+        // state). A model past `MAX_MODEL_NORM` is not a vehicle's: it is all NaN, which
+        // the MPC refuses (`MpcError::NonFinite`) and falls back from.
+        let norm =
+            augmented.column_iter().map(|column| column.iter().map(|x| x.abs()).sum::<f64>()).fold(0.0, f64::max);
+        if !augmented.iter().all(|x| x.is_finite()) || norm > MAX_MODEL_NORM {
+            let nan = SMatrix::<f64, N, N>::from_element(f64::NAN);
+            return Discretisation {
+                a: nan.fixed_view::<STATES, STATES>(0, 0).into_owned(),
+                b: nan.fixed_view::<STATES, INPUTS>(0, STATES).into_owned(),
+                offset: nan.fixed_view::<STATES, 1>(0, STATES + INPUTS).into_owned(),
+            };
+        }
         let exp = augmented.exp();
         Discretisation {
             a: exp.fixed_view::<STATES, STATES>(0, 0).into_owned(),

@@ -246,3 +246,20 @@ fn a_five_centimetre_offset_dies_out_at_30_and_36_metres_per_second() {
         }
     }
 }
+
+/// A state that has blown up, or came so from outside: nalgebra's exponential would square
+/// its matrix 2^64 times for an infinite entry. The model comes back all NaN at once,
+/// which the MPC refuses (`MpcError::NonFinite`).
+#[test]
+fn a_state_out_of_all_bounds_gives_a_nan_model_at_once() {
+    let vehicle = VehicleParams::default();
+    let driver = DriverParams::for_style(Style::Normal);
+    let command = Command { accel: 0.0, preview: -4.0 };
+    for vx in [f64::INFINITY, f64::NAN, 1e300] {
+        let state = VehicleState { vx, ..sample_state() };
+        let disc = linearise(&state, command, 0.0, &vehicle, &driver).discretise(0.1);
+        assert!(disc.a.iter().chain(disc.b.iter()).chain(disc.offset.iter()).all(|x| x.is_nan()), "vx {vx}");
+    }
+    let sane = linearise(&sample_state(), command, 0.0, &vehicle, &driver).discretise(0.1);
+    assert!(sane.a.iter().all(|x| x.is_finite()), "a vehicle's own model is untouched");
+}

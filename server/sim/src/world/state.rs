@@ -12,7 +12,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use super::{Collision, Driver, Vehicle, World};
+use super::{AgentCommand, Collision, Driver, Vehicle, World};
 use crate::road::LaneId;
 use crate::scene::{Car, DriverKind};
 
@@ -150,12 +150,16 @@ impl World {
             if !lanes_used.into_iter().flatten().all(lane_ok) {
                 return Err(invalid(format!("{}: a lane the road (lanes 0..{lanes}) does not have", at())));
             }
-            let s = &theirs.state;
-            let numbers = [s.vx, s.vy, s.yaw_rate, s.heading, s.s, s.d, s.steer, s.steer_rate, theirs.target_speed];
-            if !numbers.iter().all(|x| x.is_finite()) {
-                return Err(invalid(format!("{}: a state or target speed that is not finite", at())));
+            if !vehicle_numbers(theirs).all(f64::is_finite) {
+                return Err(invalid(format!(
+                    "{}: a number that is not finite (its state, command, path or driver's memory)",
+                    at()
+                )));
             }
             let car = &state.scene_cars[index];
+            if !car_numbers(car).all(f64::is_finite) {
+                return Err(invalid(format!("scene car {index}: a number that is not finite")));
+            }
             let kind_matches = matches!(
                 (car.driver, &ours.driver),
                 (DriverKind::Agent, Driver::Agent(_))
@@ -188,6 +192,43 @@ impl World {
         }
         Ok(())
     }
+}
+
+/// Every number a vehicle carries from one tick to the next: its state, what it is
+/// commanded, its lateral path and its driver's memory. A number that is not finite
+/// from outside would reach the dynamics and the MPC.
+fn vehicle_numbers(vehicle: &Vehicle) -> impl Iterator<Item = f64> + '_ {
+    let path = &vehicle.path;
+    let own = [
+        vehicle.target_speed,
+        vehicle.command.accel,
+        vehicle.command.preview,
+        vehicle.longitudinal_accel,
+        // Minus infinity until MOBIL is first consulted.
+        if vehicle.last_lane_decision == f64::NEG_INFINITY { 0.0 } else { vehicle.last_lane_decision },
+        path.from,
+        path.to,
+        path.start,
+        path.duration,
+    ];
+    let driver: Vec<f64> = match &vehicle.driver {
+        Driver::Gt(gt) => {
+            let d = &gt.decision;
+            let memory = [gt.preview, gt.pace, gt.crossing_at, d.response, d.duration, d.crossing];
+            let decided = [d.accel, d.cost, d.predicted.safety, d.predicted.comfort, d.predicted.efficiency];
+            memory.into_iter().flatten().chain(decided).chain(gt.plan.iter().copied()).collect()
+        }
+        Driver::Agent(AgentCommand::Direct(command)) => vec![command.accel, command.preview],
+        Driver::Agent(AgentCommand::Track) | Driver::Idm => Vec::new(),
+    };
+    let lane_entry = vehicle.lane_entry.at;
+    vehicle.state.to_array().into_iter().chain(own).chain(vehicle.ramp_from).chain(lane_entry).chain(driver)
+}
+
+/// Every number of a car in the scene drivers read.
+fn car_numbers(car: &Car) -> impl Iterator<Item = f64> + '_ {
+    let own = [car.target_speed, car.accel, car.preview];
+    car.state.to_array().into_iter().chain(own).chain(car.decided.map(|(accel, _)| accel))
 }
 
 #[cfg(test)]
@@ -232,6 +273,19 @@ mod tests {
             ),
             ("a lane the road", Box::new(|s| s.vehicles[1].target_lane = LaneId(9))),
             ("not finite", Box::new(|s| s.vehicles[1].state.vx = f64::NAN)),
+            ("vehicle 1 ('", Box::new(|s| s.vehicles[1].command.preview = f64::INFINITY)),
+            ("vehicle 1 ('", Box::new(|s| s.vehicles[1].path.duration = f64::NAN)),
+            (
+                "memory",
+                Box::new(|s| {
+                    let gt = s.vehicles.iter_mut().find_map(|v| match &mut v.driver {
+                        Driver::Gt(gt) => Some(gt),
+                        _ => None,
+                    });
+                    gt.expect("merge-random has a gt car").plan = vec![0.0, f64::NEG_INFINITY];
+                }),
+            ),
+            ("scene car 1: a number", Box::new(|s| s.scene_cars[1].state.vx = f64::INFINITY)),
             ("scene car 1", Box::new(|s| s.scene_cars[1].lane = LaneId(40))),
             ("sorted order", Box::new(|s| s.order[0] = s.order[1])),
             (

@@ -616,8 +616,8 @@ impl World {
             return;
         }
         // One thread fewer than a tick uses: the reply's way out and the client's way back
-        // run meanwhile and need a core. On two cores these decisions then take about
-        // 320 µs on one thread and end about 85 µs before the next request arrives.
+        // run meanwhile and need a core. On two cores, one period's decisions made in turn
+        // fit within the round trip of a client in Python (docs/performance.md).
         let mut decided = self.in_parallel(pick, self.decision_threads - 1, stop);
         if decided.is_empty() {
             // In turn, the game-theoretic cars first: they are most of the work.

@@ -88,8 +88,9 @@ pub fn linearise(
 }
 
 /// The largest 1-norm of [[A, B, c], [0, 0, 0]] dT `discretise` takes: a vehicle's is
-/// below 20 in the shipped scenarios (its entries are gains over time constants of tenths of a second, times
-/// dT); past 1e12 the state it came from has blown up (or came so from outside).
+/// tens at most (gains over time constants of tenths of a second, times dT; the gt
+/// bench's worlds keep their digest under this bound); past 1e12 the state it came from
+/// has blown up, or came so from outside.
 pub const MAX_MODEL_NORM: f64 = 1e12;
 
 /// The discrete model of eq. (24): x(k+1) = A_k x(k) + B_k u(k) + c_k.

@@ -760,7 +760,6 @@ impl World {
         match decision_pool() {
             Some(pool) if rayon::current_thread_index().is_none() => {
                 let helpers = helpers(pool.current_num_threads());
-                SECTIONS.fetch_add(1, Ordering::Relaxed);
                 pool.in_place_scope(|scope| alongside(scope, helpers, &work, &count));
                 keep_warm(pool);
             }
@@ -1078,6 +1077,9 @@ fn alongside<'scope>(
             work();
         });
     }
+    // Ends the spin of a helper kept warm (`keep_warm`) now that its job is queued: it
+    // takes the job at once rather than looking for work before it is there.
+    SECTIONS.fetch_add(1, Ordering::Relaxed);
     work();
     // A helper not started by now finds no task left and ends at once; the scope waits
     // for it.

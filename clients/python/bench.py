@@ -9,7 +9,10 @@ size on 2 threads.
     python clients/python/bench.py --binary target/release/arena-server [--vs-envpool]
 
 Without --connect it launches its own arena-server (the --binary given, else the one
-highway_arena.launch_server finds). Every policy is `idle` (meta action 1, as in
+highway_arena.launch_server finds). With --vs OTHER, it launches that server binary too
+and measures the one env on the two servers in turn, --rounds times (the order flipped
+each round), printing each round's pair and the median of their ratios: two builds
+compared side by side on a machine whose speed drifts. Every policy is `idle` (meta action 1, as in
 highway-env); with --actions random the single env's actions are drawn from its action
 spaces (seeded). Prints a table, or JSON with --json.
 """
@@ -18,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 
@@ -92,6 +96,40 @@ def envpool_rate(num_envs: int, threads: int, seconds: float) -> float:
     return rate * num_envs
 
 
+def side_by_side(args, overrides: dict) -> int:
+    """The one env on --binary (A) and --vs (B) in turn, --rounds times: each round's
+    simulated s per wall s and B / A, then the medians."""
+    import statistics
+
+    binaries = {"A": args.binary, "B": args.vs}
+    rounds = []
+    with highway_arena.launch_server(binary=args.binary) as a, highway_arena.launch_server(binary=args.vs) as b:
+        servers = {"A": a, "B": b}
+        for k in range(args.rounds):
+            order = ("A", "B") if k % 2 == 0 else ("B", "A")
+            got = {}
+            for name in order:
+                where = {"connect": servers[name].endpoint, "mode": "peer"}
+                if overrides:
+                    where["overrides"] = overrides
+                print(f"round {k + 1}, {name} ...", file=sys.stderr)
+                got[name] = single(where, args.scenario, args.seconds, args.actions)[0]
+            rounds.append(got)
+    ratios = [r["B"] / r["A"] for r in rounds]
+    if args.json:
+        print(json.dumps({"scenario": args.scenario, "actions": args.actions, "binaries": binaries, "rounds": rounds,
+                          "median_ratio": statistics.median(ratios)}, indent=2))
+        return 0
+    print(f"scenario {args.scenario}, one env, {args.actions} actions, simulated s per wall s:")
+    print(f"  A = {args.binary or 'the default server'}\n  B = {args.vs}")
+    print("round        A        B    B / A")
+    for k, (r, ratio) in enumerate(zip(rounds, ratios)):
+        print(f"{k + 1:>5} {r['A']:8.1f} {r['B']:8.1f} {ratio:8.3f}")
+    a, b = statistics.median(r["A"] for r in rounds), statistics.median(r["B"] for r in rounds)
+    print(f"median {a:7.1f} {b:8.1f} {statistics.median(ratios):8.3f}")
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--connect", help="endpoint of a running arena-server or router (default: launch one)")
@@ -123,6 +161,12 @@ def main() -> int:
         default="idle",
         help="the single env's actions: idle (meta action 1, the default) or drawn from its action spaces, seeded",
     )
+    parser.add_argument(
+        "--vs",
+        metavar="BINARY",
+        help="a second arena-server binary: the one env measured on both servers in turn (no batches)",
+    )
+    parser.add_argument("--rounds", type=int, default=5, help="with --vs: rounds of the pair (default 5)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--vs-envpool", action="store_true", help="also measure EnvPool's Highway-v0 (pip install envpool)")
     args = parser.parse_args()
@@ -161,6 +205,15 @@ def main() -> int:
                 figures["envpool"][f"{size} (2 threads)"] = envpool_rate(size, 2, args.seconds)
         return figures
 
+    if args.vs:
+        if args.connect:
+            parser.error("--vs launches both servers; it cannot be used with --connect")
+        for flag, path in (("--binary", args.binary), ("--vs", args.vs)):
+            if path is not None and not (os.path.isfile(path) and os.access(path, os.X_OK)):
+                parser.error(f"{flag} {path!r} is not an executable file")
+        if args.rounds < 1:
+            parser.error(f"--rounds must be at least 1, not {args.rounds}")
+        return side_by_side(args, overrides)
     if args.connect:
         figures = run(args.connect)
     else:

@@ -163,15 +163,15 @@ pub(crate) fn build_qp(problem: &MpcProblem, params: &MpcParams) -> Qp {
     let (mut p, mut q) = (DMatrix::<f64>::zeros(n, n), DVector::<f64>::zeros(n));
     let mut gain = vec![0.0; n];
     // eq. (26), ||y||_Q^2: P += w g g', q += c w g, as nalgebra's `ger` and `axpy` sum them.
+    // Over P's columns as slices (column-major), so the compiler can use vectors: each
+    // entry's sum is the same, (w g_j) g_i added once.
     let mut add = |gain: &[f64], constant: f64, weight: f64| {
-        for (j, &gain_j) in gain.iter().enumerate() {
-            for (i, &gain_i) in gain.iter().enumerate() {
-                p[(i, j)] += weight * gain_j * gain_i;
-            }
+        for (column, &gain_j) in p.as_mut_slice().chunks_exact_mut(n).zip(gain) {
+            let scale = weight * gain_j;
+            column.iter_mut().zip(gain).for_each(|(entry, &gain_i)| *entry += scale * gain_i);
         }
-        for (i, &gain_i) in gain.iter().enumerate() {
-            q[i] += constant * weight * gain_i;
-        }
+        let scale = constant * weight;
+        q.as_mut_slice().iter_mut().zip(gain).for_each(|(entry, &gain_i)| *entry += scale * gain_i);
     };
     for k in 0..params.prediction_horizon {
         x = disc.a * x + b_y * u_prev + drift(k); // eq. (24) with u(k) = u(k-1) + sum of Delta u

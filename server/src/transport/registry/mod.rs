@@ -130,8 +130,8 @@ impl Registry {
         self.handle_then(user, bytes).0
     }
 
-    /// `handle_from`, and for a single step whose episode goes on, the work that may start
-    /// once its reply is sent: the env's next decisions (`Env::decide_ahead`).
+    /// `handle_from`, and for a reset or a single step whose episode goes on, the work that
+    /// may start once its reply is sent: the env's next decisions (`Env::decide_ahead`).
     pub fn handle_then(&self, user: Option<&str>, bytes: &[u8]) -> (Vec<u8>, Option<Ahead>) {
         let mut ahead = None;
         let body = self.answer(user, bytes, &mut ahead).unwrap_or_else(ReplyBody::Error);
@@ -178,19 +178,19 @@ impl Registry {
         match request.body {
             RequestBody::ServerInfo => Ok(ReplyBody::ServerInfo(self.info(&party))),
             RequestBody::CreateEnv { scenario, options } => self.create(client, party, scenario, &options),
-            RequestBody::Reset { env, seq, seed, options } => self.sequenced(client, env, seq, |env| {
-                self.panic_if_injected("reset");
-                let agents = env.reset(seed, &options)?;
-                Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.world_start().map(Box::new) }))
-            }),
+            RequestBody::Reset { env: id, seq, seed, options } => {
+                let reply = self.sequenced(client, id, seq, |env| {
+                    self.panic_if_injected("reset");
+                    let agents = env.reset(seed, &options)?;
+                    Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.world_start().map(Box::new) }))
+                });
+                self.ahead_of_step(&reply, client, id, ahead);
+                reply
+            }
             RequestBody::Step { env: id, seq, actions } => {
                 let reply =
                     self.sequenced(client, id, seq, |env| self.step_reply(env, seq, &actions).map(ReplyBody::Step));
-                if let Ok(ReplyBody::Step(step)) = &reply
-                    && !step.agents.is_empty()
-                {
-                    *ahead = self.slot(client, id).ok().map(Ahead);
-                }
+                self.ahead_of_step(&reply, client, id, ahead);
                 reply
             }
             RequestBody::StepBatch { steps } => {
@@ -216,6 +216,25 @@ impl Registry {
                 let agents = env.restore(&snapshot)?;
                 Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.world_start().map(Box::new) }))
             }),
+        }
+    }
+
+    /// Sets `ahead` to env `id`'s next decisions when `reply` leaves it waiting for a step:
+    /// a reset, or a step whose episode goes on.
+    fn ahead_of_step(
+        &self,
+        reply: &Result<ReplyBody, ErrorReply>,
+        client: ClientId,
+        id: EnvId,
+        ahead: &mut Option<Ahead>,
+    ) {
+        let goes_on = match reply {
+            Ok(ReplyBody::Step(step)) => !step.agents.is_empty(),
+            Ok(ReplyBody::Reset(reset)) => !reset.agents.is_empty(),
+            _ => false,
+        };
+        if goes_on {
+            *ahead = self.slot(client, id).ok().map(Ahead);
         }
     }
 

@@ -1034,9 +1034,9 @@ fn keep_warm(pool: &rayon::ThreadPool) {
 pub fn beside_decisions(job: impl FnOnce() + Send + 'static) {
     match decision_pool() {
         Some(pool) => {
-            // Ends the spin it would otherwise wait behind.
-            SECTIONS.fetch_add(1, Ordering::Relaxed);
             pool.spawn(job);
+            // Ends the spin it would otherwise wait behind, once the job is there to take.
+            SECTIONS.fetch_add(1, Ordering::Relaxed);
         }
         None => job(),
     }

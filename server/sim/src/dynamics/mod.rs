@@ -31,6 +31,7 @@ pub use integrate::Stepper;
 #[cfg(test)]
 pub(crate) use integrate::{rk4, step};
 pub use jerk::{JerkSummary, commanded_jerk, longitudinal_jerk};
+pub(crate) use lanes::{Lanes, mask};
 pub use linear::linearise;
 #[cfg(test)]
 use model::{derivative, fixed_steer_derivative};

@@ -392,7 +392,7 @@ impl SideGame {
     }
 }
 
-/// AC's cells computed at once (`f64x4`).
+/// AC's cells computed at once (`lane_change_entries`).
 const LANES: usize = 4;
 
 /// AC's cost terms that do not depend on EC's action (`Situation::ac_terms`), weighted:
@@ -1012,32 +1012,18 @@ impl Situation {
         terms: &AcTerms,
         efficiency: &[f64],
     ) -> [f64; LANES] {
-        use wide::{CmpGe, CmpLt, f64x4};
         let c = &cell.params.costs;
         let ec_path = &cell.samples.ec[row];
+        let n = ec_path.len();
         // Unused lanes repeat the first column; their results are dropped.
         let lane = |i: usize| cols.get(i).copied().unwrap_or(cols[0]);
-        let paths: [&[Kinematics]; LANES] = std::array::from_fn(|i| &cell.samples.ac[lane(i)]);
-        let splat = f64x4::splat;
-        let comfort = f64x4::new(std::array::from_fn(|i| terms.comfort[lane(i)]));
-        let (zero, one) = (splat(0.0), splat(1.0));
-        let mut sum = zero;
-        for (k, ego) in ec_path.iter().enumerate() {
-            let ac = |field: fn(&Kinematics) -> f64| f64x4::new(std::array::from_fn(|i| field(&paths[i][k])));
-            let (s, d, speed) = (ac(|a| a.s), ac(|a| a.d), ac(|a| a.speed));
-            // eq. (12) as costs::lateral_safety computes it, lane by lane.
-            let ego_front = splat(ego.s).cmp_ge(s);
-            let dv = ego_front.blend(splat(ego.speed) - speed, speed - splat(ego.speed));
-            let lambda = dv.cmp_lt(zero).blend(one, zero);
-            let (ds, dd) = (splat(ego.s) - s, splat(ego.d) - d);
-            let separation = (ds * ds + dd * dd).sqrt() - splat(self.car_length);
-            let gap = separation.max(zero);
-            let proximity = splat(c.kappa_s_lat) / (gap * gap + splat(c.epsilon)) * (one + (-separation).max(zero));
-            let lateral = splat(c.kappa_v_lat) * lambda * dv * dv + proximity;
-            let efficiency = f64x4::new(std::array::from_fn(|i| efficiency[lane(i) * ec_path.len() + k]));
-            sum += splat(terms.safety_weight) * lateral + comfort + efficiency;
-        }
-        (sum / splat(ec_path.len().max(1) as f64)).to_array()
+        let columns = LaneChangeColumns {
+            paths: std::array::from_fn(|i| &cell.samples.ac[lane(i)]),
+            efficiency: std::array::from_fn(|i| &efficiency[lane(i) * n..(lane(i) + 1) * n]),
+            comfort: std::array::from_fn(|i| terms.comfort[lane(i)]),
+        };
+        let constants = [self.car_length, c.kappa_s_lat, c.epsilon, c.kappa_v_lat, terms.safety_weight];
+        lane_change_entries(ec_path, &columns, constants)
     }
 
     /// The lateral term of eq. (12) at sample `k` of a profile: zero while EC keeps its
@@ -1383,5 +1369,143 @@ impl SideGame {
             exact: profile.exact,
             cost,
         }
+    }
+}
+
+/// Up to `LANES` of AC's columns against one lane-change row: their predicted paths,
+/// their weighted efficiency per sample and their weighted comfort.
+struct LaneChangeColumns<'a> {
+    paths: [&'a [Kinematics]; LANES],
+    efficiency: [&'a [f64]; LANES],
+    comfort: [f64; LANES],
+}
+
+/// `Situation::ac_entry` for a lane-change row and `LANES` columns at once: eq. (12)'s
+/// lateral term as `costs::lateral_safety` computes it, lane by lane, plus comfort and
+/// efficiency, averaged over the samples. Compiled for AVX-512, AVX2 and SSE4.1 and
+/// picked at run time, as the world step's block is (`dynamics::Fleet`): the same
+/// operations in the same order in every lane and at every width (`Lanes`), so the same
+/// bits as one cell at a time (the differential test compares the two).
+/// `constants`: the car's length, kappa_s,lat, epsilon, kappa_v,lat, the safety weight.
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl+avx512dq", "x86_64+avx2+avx", "x86_64+sse4.1"))]
+fn lane_change_entries(ec_path: &[Kinematics], columns: &LaneChangeColumns, constants: [f64; 5]) -> [f64; LANES] {
+    lane_change_entries_in(ec_path, columns, constants)
+}
+
+/// `lane_change_entries` for whichever instruction set its caller was compiled for.
+#[inline(always)]
+fn lane_change_entries_in(ec_path: &[Kinematics], columns: &LaneChangeColumns, constants: [f64; 5]) -> [f64; LANES] {
+    use crate::dynamics::{Lanes, mask};
+    let [car_length, kappa_s_lat, epsilon, kappa_v_lat, safety_weight] = constants;
+    let splat = Lanes::<LANES>::splat;
+    let (zero, one) = (splat(0.0), splat(1.0));
+    let comfort = Lanes(columns.comfort);
+    let mut sum = zero;
+    for (k, ego) in ec_path.iter().enumerate() {
+        let at = |field: fn(&Kinematics) -> f64| Lanes::gather(|i| field(&columns.paths[i][k]));
+        let (s, d, speed) = (at(|a| a.s), at(|a| a.d), at(|a| a.speed));
+        let ego_front = mask(|i| ego.s >= s.0[i]);
+        let dv = Lanes::select(ego_front, splat(ego.speed) - speed, speed - splat(ego.speed));
+        let lambda = Lanes::select(dv.lt(zero), one, zero);
+        let (ds, dd) = (splat(ego.s) - s, splat(ego.d) - d);
+        let separation = (ds * ds + dd * dd).map(f64::sqrt) - splat(car_length);
+        let gap = separation.max(zero);
+        let proximity = splat(kappa_s_lat) / (gap * gap + splat(epsilon)) * (one + (-separation).max(zero));
+        let lateral = splat(kappa_v_lat) * lambda * dv * dv + proximity;
+        let efficiency = Lanes::gather(|i| columns.efficiency[i][k]);
+        sum = sum + (splat(safety_weight) * lateral + comfort + efficiency);
+    }
+    (sum / splat(ec_path.len().max(1) as f64)).0
+}
+
+#[cfg(test)]
+mod lane_change_entries_tests {
+    use super::*;
+
+    /// A small xorshift: the same paths on every run.
+    fn draws(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// One cell as `costs::lateral_safety` and the scalar sum compute it.
+    fn one_cell(ec_path: &[Kinematics], ac: &[Kinematics], efficiency: &[f64], comfort: f64, c: &CostParams) -> f64 {
+        let (car_length, weight) = (4.8, 1.7);
+        let mut sum = 0.0;
+        for (k, &ego) in ec_path.iter().enumerate() {
+            sum += weight * costs::lateral_safety(c, car_length, ego, ac[k]) + comfort + efficiency[k];
+        }
+        sum / ec_path.len() as f64
+    }
+
+    #[test]
+    fn every_instruction_set_gives_each_cell_the_bits_of_the_cell_alone() {
+        let c = CostParams::default();
+        let constants = [4.8, c.kappa_s_lat, c.epsilon, c.kappa_v_lat, 1.7];
+        let mut next = draws(0x5eed_cafe);
+        let path = |n: usize, next: &mut dyn FnMut() -> f64| -> Vec<Kinematics> {
+            let (s0, d0) = (100.0 * next(), -12.0 * next());
+            (0..n)
+                .map(|k| Kinematics { s: s0 + k as f64 * (2.0 + next()), d: d0 + next(), speed: 35.0 * next() })
+                .collect()
+        };
+        let mut checked = 0;
+        for n in [1, 5, 26] {
+            for _ in 0..200 {
+                let ec = path(n, &mut next);
+                let ac: Vec<Vec<Kinematics>> = (0..LANES).map(|_| path(n, &mut next)).collect();
+                let efficiency: Vec<Vec<f64>> = (0..LANES).map(|_| (0..n).map(|_| 3.0 * next()).collect()).collect();
+                let comfort: [f64; LANES] = std::array::from_fn(|_| next());
+                let columns = LaneChangeColumns {
+                    paths: std::array::from_fn(|i| ac[i].as_slice()),
+                    efficiency: std::array::from_fn(|i| efficiency[i].as_slice()),
+                    comfort,
+                };
+                let expected: Vec<u64> =
+                    (0..LANES).map(|i| one_cell(&ec, &ac[i], &efficiency[i], comfort[i], &c).to_bits()).collect();
+                for (name, got) in with_each_instruction_set(&ec, &columns, constants) {
+                    assert_eq!(got.map(f64::to_bits).to_vec(), expected, "{name}, {n} samples");
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked >= 600, "{checked}");
+    }
+
+    /// The cells compiled for each instruction set this machine has, and dispatched.
+    fn with_each_instruction_set(
+        ec: &[Kinematics],
+        columns: &LaneChangeColumns,
+        constants: [f64; 5],
+    ) -> Vec<(&'static str, [f64; LANES])> {
+        let mut out = vec![
+            ("baseline", lane_change_entries_in(ec, columns, constants)),
+            ("dispatched", lane_change_entries(ec, columns, constants)),
+        ];
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+            unsafe fn avx512(ec: &[Kinematics], columns: &LaneChangeColumns, constants: [f64; 5]) -> [f64; LANES] {
+                lane_change_entries_in(ec, columns, constants)
+            }
+            #[target_feature(enable = "avx2,avx")]
+            unsafe fn avx2(ec: &[Kinematics], columns: &LaneChangeColumns, constants: [f64; 5]) -> [f64; LANES] {
+                lane_change_entries_in(ec, columns, constants)
+            }
+            if is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512vl") {
+                // SAFETY: the features were detected on this machine.
+                out.push(("avx512", unsafe { avx512(ec, columns, constants) }));
+            }
+            if is_x86_feature_detected!("avx2") {
+                // SAFETY: as above.
+                out.push(("avx2", unsafe { avx2(ec, columns, constants) }));
+            }
+        }
+        out
     }
 }

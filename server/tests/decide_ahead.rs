@@ -1,7 +1,8 @@
 //! The request handler hands the queryable an env's next decisions to make once a
 //! reply is sent (`Registry::handle_then`): for a reset and for a single step whose
-//! episode goes on, and for nothing else. What they change (nothing but when the work is done) is
-//! tested over Zenoh (tests/tests/env_over_zenoh.rs) and in the world (world/tests.rs).
+//! episode goes on, and for nothing else. What they change (nothing but when the work is
+//! done) is tested over Zenoh (tests/tests/env_over_zenoh.rs) and in the world
+//! (world/tests.rs).
 
 use arena_protocol::{
     ClientId, CreateOptions, EnvId, PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetOptions,

@@ -333,9 +333,9 @@ impl Env {
 
     /// Makes the next step's first decisions now (`World::decide_ahead`), while its
     /// actions are on their way, until `stop` says the next request has come: a server
-    /// calls it once a reset's or a step's reply is sent. The next step takes them when its actions
-    /// leave the vehicles as they were, and makes them again otherwise; its results are
-    /// the same bits either way.
+    /// calls it once a reset's or a step's reply is sent. The next step takes them when
+    /// its actions leave the vehicles as they were, and makes them again otherwise; its
+    /// results are the same bits either way.
     pub fn decide_ahead(&mut self, stop: &(dyn Fn() -> bool + Sync)) {
         if self.agents.iter().any(|a| a.live)
             && let Some(world) = self.world.as_mut()

@@ -6,7 +6,8 @@
 //! Closing drains: the requests being answered finish and are replied to; later ones are
 //! told `ShuttingDown` at once, so no client waits out its timeout on a server that left.
 //! Memory freed when clients leave is handed back to the system here (`memory::return_freed_memory`).
-//! Once a reset's or a step's reply is sent, the env's next decisions are made beside (`Registry::decide_ahead`).
+//! Once a reset's or a step's reply is sent, the env's next decisions are made on the
+//! decision pool's thread (`Registry::decide_ahead`).
 
 mod limits;
 mod memory;

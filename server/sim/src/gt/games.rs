@@ -1433,9 +1433,13 @@ mod lane_change_entries_tests {
         }
     }
 
+    /// The car's length and the safety weight the test's cells use.
+    const CAR_LENGTH: f64 = 4.8;
+    const SAFETY_WEIGHT: f64 = 1.7;
+
     /// One cell as `costs::lateral_safety` and the scalar sum compute it.
     fn one_cell(ec_path: &[Kinematics], ac: &[Kinematics], efficiency: &[f64], comfort: f64, c: &CostParams) -> f64 {
-        let (car_length, weight) = (4.8, 1.7);
+        let (car_length, weight) = (CAR_LENGTH, SAFETY_WEIGHT);
         let mut sum = 0.0;
         for (k, &ego) in ec_path.iter().enumerate() {
             sum += weight * costs::lateral_safety(c, car_length, ego, ac[k]) + comfort + efficiency[k];
@@ -1446,7 +1450,7 @@ mod lane_change_entries_tests {
     #[test]
     fn every_instruction_set_gives_each_cell_the_bits_of_the_cell_alone() {
         let c = CostParams::default();
-        let constants = [4.8, c.kappa_s_lat, c.epsilon, c.kappa_v_lat, 1.7];
+        let constants = [CAR_LENGTH, c.kappa_s_lat, c.epsilon, c.kappa_v_lat, SAFETY_WEIGHT];
         let mut next = draws(0x5eed_cafe);
         let path = |n: usize, next: &mut dyn FnMut() -> f64| -> Vec<Kinematics> {
             let (s0, d0) = (100.0 * next(), -12.0 * next());

@@ -37,8 +37,8 @@ struct Slot {
     last_used: Instant,
 }
 
-/// An env's decisions to make ahead once a step's reply is sent (`Registry::handle_then`,
-/// `Registry::decide_ahead`).
+/// An env's decisions to make ahead once a reset's or a step's reply is sent
+/// (`Registry::handle_then`, `Registry::decide_ahead`).
 pub struct Ahead(Arc<Mutex<Slot>>);
 
 /// Every env of one server.

@@ -238,4 +238,10 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except highway_arena.ArenaError as error:
+        # A scenario the server does not have, a server that cannot be reached: what the
+        # server said, without a traceback.
+        print(f"bench.py: error: {error}", file=sys.stderr)
+        sys.exit(2)

@@ -38,3 +38,10 @@ def test_vs_cannot_be_combined_with_connect():
     done = bench("--vs", find_server_binary(), "--connect", "tcp/127.0.0.1:7447")
     assert done.returncode == 2
     assert "cannot be used with --connect" in done.stderr
+
+
+def test_a_scenario_the_server_does_not_have_is_refused_by_name_without_a_traceback():
+    binary = find_server_binary()
+    done = bench("--binary", binary, "--vs", binary, "--scenario", "nope", "--seconds", "0.2", "--rounds", "1")
+    assert done.returncode == 2
+    assert "no scenario named 'nope'" in done.stderr and "Traceback" not in done.stderr

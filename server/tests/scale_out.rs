@@ -105,3 +105,30 @@ async fn envs_spread_over_three_servers_and_survive_the_loss_of_one() {
     alice.close().await.unwrap();
     bob.close().await.unwrap();
 }
+
+/// A router that restarts takes every client's liveliness token away from the servers
+/// for a moment (so does a link that drops: zenoh-link-tls 1.10.2 closes TLS links under
+/// load); Zenoh reconnects both sides and the tokens come back. The envs live on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn envs_live_on_through_a_router_restart() {
+    let router = format!("tcp/127.0.0.1:{}", free_port());
+    let mut first_router = Process::start(&["--mode", "router", "--route-only", "--listen", &router]);
+    let server = Process::start(&["--mode", "client", "--connect", &router]);
+    let alice = client(&router).await;
+    assert_eq!(sees(&alice, 1).await, vec![server.server_id()]);
+    let mut env = alice
+        .create_env(&server.server_id(), ScenarioSource::Named("merge".into()), Default::default())
+        .await
+        .expect("create");
+    env.reset(Some(0), vec![]).await.expect("reset");
+    env.step(vec![]).await.expect("a step");
+
+    first_router.kill();
+    let _second_router = Process::start(&["--mode", "router", "--route-only", "--listen", &router]);
+    assert_eq!(sees(&alice, 1).await, vec![server.server_id()], "the server is found through the new router");
+    let step = env.step(vec![]).await.expect("the env steps on after the restart");
+    assert!(!step.agents.is_empty(), "the episode goes on");
+    let infos = alice.server_infos().await.expect("infos");
+    assert_eq!(infos.iter().map(|info| info.envs).collect::<Vec<_>>(), vec![1]);
+    alice.close().await.unwrap();
+}

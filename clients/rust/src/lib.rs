@@ -110,9 +110,10 @@ fn zenoh_error(e: impl fmt::Display) -> ClientError {
     ClientError::Zenoh(e.to_string())
 }
 
-/// Pause before asking again when nothing answered on a server's key at all (a route
-/// may be settling); after every attempt so answered, the server is taken as gone.
-const GONE_GRACE: Duration = Duration::from_millis(50);
+/// Pause before asking again when nothing answered on a server's key at all: a route may
+/// be settling, or this session's link coming back (Zenoh reconnects a dropped link in
+/// tens of milliseconds); after every attempt so answered, the server is taken as gone.
+const GONE_GRACE: Duration = Duration::from_millis(200);
 
 struct Inner {
     session: zenoh::Session,

@@ -26,8 +26,9 @@ impl Default for Limits {
     }
 }
 
-/// How long an env's owner has for its liveliness token to reach the server after the
-/// create: envs of a client without a token are closed after this (`reclaim_orphans`).
+/// How long an env's owner may be without a liveliness token on the server: after its
+/// create (the token is on its way), or after the token went (its link dropped, and Zenoh
+/// reconnects it); envs of a client without one this long are closed (`reclaim_orphans`).
 pub const ORPHAN_GRACE: Duration = Duration::from_secs(3);
 
 /// Who an env counts against in `Limits::max_envs_per_client`: the user a site's access

@@ -134,14 +134,9 @@ impl Server {
             .callback(move |sample| {
                 let tag = keys::client_tag_from_liveliness(&prefix_owned, sample.key_expr().as_str());
                 let Some(client) = tag.and_then(|tag| tag.parse::<ClientTag>().ok()) else { return };
-                if sample.kind() == SampleKind::Put {
-                    watcher.client_arrived(client);
-                    return;
-                }
-                let closed = watcher.drop_client(client);
-                if closed > 0 {
-                    return_freed_memory();
-                    eprintln!("arena-server: client {client} is gone; closed its {closed} env(s)");
+                match sample.kind() {
+                    SampleKind::Put => watcher.client_arrived(client),
+                    SampleKind::Delete => watcher.client_left(client, Instant::now()),
                 }
             })
             .await?;
@@ -167,7 +162,11 @@ impl Server {
                     eprintln!("arena-server: closed {idle} idle env(s)");
                 }
                 if orphans > 0 {
-                    eprintln!("arena-server: closed {orphans} env(s) of clients that showed no liveliness token");
+                    eprintln!(
+                        "arena-server: closed {orphans} env(s) of clients gone, or never seen, for {} s (no liveliness \
+                         token)",
+                        ORPHAN_GRACE.as_secs()
+                    );
                 }
             }
         });

@@ -7,7 +7,7 @@
 mod batch;
 mod sequence;
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
 use std::time::Instant;
@@ -50,8 +50,8 @@ pub struct Registry {
     /// How many envs each party holds (kept with `envs`, under its lock, so a create
     /// checks the party's limit without visiting every env).
     shares: Mutex<Shares>,
-    /// Tags of the clients whose liveliness tokens are alive now.
-    live: Mutex<HashSet<ClientTag>>,
+    /// Clients by tag: `None` while their liveliness token is alive, else when it went.
+    tokens: Mutex<HashMap<ClientTag, Option<Instant>>>,
     closed: Mutex<Tombstones>,
     /// Env steps taken, for `ServerInfo::steps`.
     steps: AtomicU64,
@@ -85,7 +85,7 @@ impl Registry {
             limits,
             envs: Mutex::new(HashMap::new()),
             shares: Mutex::new(Shares::default()),
-            live: Mutex::new(HashSet::new()),
+            tokens: Mutex::new(HashMap::new()),
             closed: Mutex::new(Tombstones::default()),
             steps: AtomicU64::new(0),
             batch_workers: std::sync::OnceLock::new(),
@@ -390,22 +390,35 @@ impl Registry {
 
     /// Notes that the client whose public tag is `client` has a live liveliness token.
     pub fn client_arrived(&self, client: ClientTag) {
-        lock(&self.live).insert(client);
+        lock(&self.tokens).insert(client, None);
     }
 
-    /// Closes every env of the client whose public tag is `client` (its liveliness token
-    /// is gone); returns how many.
-    pub fn drop_client(&self, client: ClientTag) -> usize {
-        lock(&self.live).remove(&client);
-        self.retain(|slot| slot.owner_tag != client)
+    /// Notes that the token of the client whose public tag is `client` went at `now`.
+    /// Its envs stay for `ORPHAN_GRACE`: a client whose link drops and comes back (Zenoh
+    /// reconnects it and declares its token again) loses nothing; `reclaim_orphans`
+    /// closes them if it stays away.
+    pub fn client_left(&self, client: ClientTag, now: Instant) {
+        lock(&self.tokens).insert(client, Some(now));
     }
 
-    /// Closes the envs whose owner has shown no liveliness token within `ORPHAN_GRACE`
-    /// of creating them; returns how many. Ids cost nothing, so without this one session
-    /// minting ids could hold every place of an open server until the idle timeout.
+    /// Closes the envs whose owner has shown no liveliness token for `ORPHAN_GRACE`:
+    /// since it left, or since the env was created by an id that never showed one; returns
+    /// how many. Ids cost nothing, so without this one session minting ids could hold
+    /// every place of an open server until the idle timeout.
     pub fn reclaim_orphans(&self, now: Instant) -> usize {
-        let live = lock(&self.live).clone();
-        self.retain(|slot| live.contains(&slot.owner_tag) || now.saturating_duration_since(slot.created) < ORPHAN_GRACE)
+        let tokens = lock(&self.tokens).clone();
+        let away_too_long = |slot: &Slot| {
+            let since = match tokens.get(&slot.owner_tag) {
+                Some(None) => return false,
+                Some(Some(left)) => (*left).max(slot.created),
+                None => slot.created,
+            };
+            now.saturating_duration_since(since) >= ORPHAN_GRACE
+        };
+        let closed = self.retain(|slot| !away_too_long(slot));
+        // Every env of a client gone this long was closed just now: forget it.
+        lock(&self.tokens).retain(|_, left| left.is_none_or(|left| now.saturating_duration_since(left) < ORPHAN_GRACE));
+        closed
     }
 
     /// Closes envs idle for longer than the limit; returns how many.

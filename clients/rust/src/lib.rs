@@ -437,7 +437,8 @@ impl Client {
     }
 
     /// Undeclares this client and closes its session, for every handle sharing it;
-    /// servers then close its envs. Closing twice is harmless.
+    /// servers then close its envs, 3 s later (the grace a dropped link has to come back;
+    /// close the envs first to free their places at once). Closing twice is harmless.
     pub async fn close(&self) -> Result<()> {
         let token = self.inner.token.lock().map_or(None, |mut token| token.take());
         if let Some(token) = token {

@@ -205,12 +205,14 @@ def main() -> int:
                 figures["envpool"][f"{size} (2 threads)"] = envpool_rate(size, 2, args.seconds)
         return figures
 
+    if not args.seconds > 0:
+        parser.error(f"--seconds must be a positive number of wall seconds, not {args.seconds}")
+    for flag, path in (("--binary", args.binary), ("--vs", args.vs)):
+        if path is not None and not (os.path.isfile(path) and os.access(path, os.X_OK)):
+            parser.error(f"{flag} {path!r} is not an executable file")
     if args.vs:
         if args.connect:
             parser.error("--vs launches both servers; it cannot be used with --connect")
-        for flag, path in (("--binary", args.binary), ("--vs", args.vs)):
-            if path is not None and not (os.path.isfile(path) and os.access(path, os.X_OK)):
-                parser.error(f"{flag} {path!r} is not an executable file")
         if args.rounds < 1:
             parser.error(f"--rounds must be at least 1, not {args.rounds}")
         return side_by_side(args, overrides)

@@ -45,3 +45,12 @@ def test_a_scenario_the_server_does_not_have_is_refused_by_name_without_a_traceb
     done = bench("--binary", binary, "--vs", binary, "--scenario", "nope", "--seconds", "0.2", "--rounds", "1")
     assert done.returncode == 2
     assert "no scenario named 'nope'" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_binary_that_is_not_there_or_no_seconds_is_refused_by_name_in_every_mode():
+    done = bench("--binary", "/nonexistent/arena-server", "--seconds", "1")
+    assert done.returncode == 2
+    assert "--binary '/nonexistent/arena-server' is not an executable file" in done.stderr
+    done = bench("--seconds", "-1")
+    assert done.returncode == 2
+    assert "--seconds must be a positive number of wall seconds, not -1.0" in done.stderr

@@ -251,9 +251,13 @@ def test_a_batch_naming_one_env_twice_is_refused():
     batch.close()
 
 
-def test_launch_server_reports_a_missing_binary():
-    with pytest.raises(FileNotFoundError), highway_arena.launch_server(binary="/nonexistent/arena-server"):
+def test_launch_server_reports_a_missing_binary(monkeypatch):
+    named = "binary= '/nonexistent/arena-server' is not an executable file"
+    with pytest.raises(FileNotFoundError, match=named), highway_arena.launch_server(binary="/nonexistent/arena-server"):
         pass
+    monkeypatch.setenv("ARENA_SERVER", "/nonexistent/arena-server")
+    with pytest.raises(FileNotFoundError, match=r"\$ARENA_SERVER '/nonexistent/arena-server' is not an executable"):
+        highway_arena.find_server_binary()
 
 
 def test_connection_defaults_are_the_protocol_crates():

@@ -31,9 +31,9 @@ def find_server_binary(binary=None) -> str:
     this package's wheel, else ``arena-server`` on PATH, else this repository's
     target/release/arena-server, then target/debug/arena-server."""
     if binary:
-        return str(binary)
+        return _executable(binary, "binary=")
     if os.environ.get("ARENA_SERVER"):
-        return os.environ["ARENA_SERVER"]
+        return _executable(os.environ["ARENA_SERVER"], "$ARENA_SERVER")
     if BUNDLED_SERVER.is_file():
         return str(BUNDLED_SERVER)
     found = shutil.which("arena-server")
@@ -50,6 +50,18 @@ def find_server_binary(binary=None) -> str:
         "build it with `cargo build --release -p arena-server`, put it on PATH, set $ARENA_SERVER, "
         "or pass binary=..."
     )
+
+
+def _executable(path, named_by: str) -> str:
+    """``path`` (a file, or a command on PATH) if it can be run; else an error naming
+    where it came from, rather than the subprocess's bare "No such file"."""
+    found = shutil.which(str(path))
+    if found is None:
+        raise FileNotFoundError(
+            f"{named_by} {str(path)!r} is not an executable file: build one with "
+            "`cargo build --release -p arena-server` and give its path (target/release/arena-server)"
+        )
+    return found
 
 
 def _free_port() -> int:

@@ -33,8 +33,10 @@ pub use gt::{
 pub use preset::{BUILTIN_PRESETS, Preset, PresetError};
 pub use road::{LaneChange, LaneId, Pose, Road, Section};
 pub use scenario::{
-    ActionKind, BUILTIN_SCENARIOS, DriverSpec, Goal, GtTraffic, MAX_SCENARIO_DEPTH, RewardSpec, Scenario,
-    ScenarioError, ScenarioErrorKind, TrafficSpec, Variation, VehicleSpec, builtin_scenario,
+    ActionKind, BUILTIN_SCENARIOS, DriverSpec, EPISODE_DRAWS, Goal, GtTraffic, MAX_CONTROL_PERIODS_PER_STEP,
+    MAX_GT_CARS, MAX_GT_DECISIONS_PER_STEP, MAX_LEARNERS, MAX_PHYSICS_TICKS_PER_STEP, MAX_ROAD_EXTENT,
+    MAX_ROAD_SECTIONS, MAX_SCENARIO_DEPTH, MAX_VARY_KEYS, MAX_VEHICLES, RewardSpec, Scenario, ScenarioError,
+    ScenarioErrorKind, TrafficSpec, VARY_DRAW_BUDGET_BYTES, Variation, VehicleSpec, builtin_scenario,
 };
 pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 pub use traffic::{IdmParams, speed_control};

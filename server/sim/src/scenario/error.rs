@@ -60,6 +60,14 @@ pub enum ScenarioErrorKind {
         /// How deep they nest, as far as counted (`MAX_SCENARIO_DEPTH` + 1 at most).
         depth: usize,
     },
+    /// Occurs when every `[vary]` draw of a reset placed cars on each other or off the
+    /// road, `draws` of them (`EPISODE_DRAWS`, fewer for a large file).
+    DrawsExhausted {
+        /// How many draws were made.
+        draws: usize,
+        /// Why the last was refused (an `Overlap` or `OffRoad`).
+        last: Box<ScenarioErrorKind>,
+    },
     /// Occurs when an override names a key that cannot be set.
     BadOverride {
         /// The override's dotted key.
@@ -71,8 +79,13 @@ pub enum ScenarioErrorKind {
 
 impl fmt::Display for ScenarioError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "invalid scenario '{}': ", self.file)?;
-        match &self.kind {
+        write!(f, "invalid scenario '{}': {}", self.file, self.kind)
+    }
+}
+
+impl fmt::Display for ScenarioErrorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
             ScenarioErrorKind::Io(message) => write!(f, "cannot read it: {message}"),
             ScenarioErrorKind::Syntax(message) => write!(f, "{}", message.trim_end()),
             ScenarioErrorKind::UnknownLane { vehicle, lane, lanes } => {
@@ -88,6 +101,13 @@ impl fmt::Display for ScenarioError {
                 write!(f, "two vehicles are named '{name}'; names must be unique")
             }
             ScenarioErrorKind::Invalid { key, message } => write!(f, "`{key}` {message}"),
+            ScenarioErrorKind::DrawsExhausted { draws, last } => {
+                write!(
+                    f,
+                    "[vary] drew this episode {draws} times and every draw was refused; the last: {last}. \
+                     Narrow the [vary] ranges so that cars cannot land on each other or off the road"
+                )
+            }
             ScenarioErrorKind::BadOverride { key, message } => write!(f, "override `{key}`: {message}"),
             ScenarioErrorKind::TooDeep { depth } => {
                 write!(f, "tables and arrays nest {depth} deep; a scenario nests at most {MAX_SCENARIO_DEPTH}")

@@ -6,7 +6,8 @@
 //! `file` (the serde types, unknown keys refused) -> `overrides` (dotted keys set on the
 //! table, and the bound on its depth) -> `validate` (into `spec`'s checked types) ->
 //! `build` (the world at time zero, random traffic included) and `vary` (the `[vary]`
-//! draws of each episode); `error` holds the ways it can be refused.
+//! draws of each episode); `bounds` holds what one scenario may cost, `error` the ways it
+//! can be refused.
 
 use std::path::Path;
 
@@ -15,6 +16,7 @@ use serde::Deserialize;
 use crate::road::Road;
 use crate::world::WorldParams;
 
+mod bounds;
 mod build;
 mod error;
 mod file;
@@ -23,6 +25,11 @@ mod spec;
 mod validate;
 mod vary;
 
+pub use bounds::{
+    EPISODE_DRAWS, MAX_CONTROL_PERIODS_PER_STEP, MAX_GT_CARS, MAX_GT_DECISIONS_PER_STEP, MAX_LEARNERS,
+    MAX_PHYSICS_TICKS_PER_STEP, MAX_ROAD_EXTENT, MAX_ROAD_SECTIONS, MAX_VARY_KEYS, MAX_VEHICLES,
+    VARY_DRAW_BUDGET_BYTES,
+};
 pub use error::{ScenarioError, ScenarioErrorKind};
 pub use overrides::MAX_SCENARIO_DEPTH;
 pub use spec::{ActionKind, DriverSpec, Goal, GtTraffic, RewardSpec, TrafficSpec, VehicleSpec};
@@ -43,6 +50,14 @@ pub const BUILTIN_SCENARIOS: [(&str, &str, &str); 8] = [
     ("merge-random", "merge-random.toml", include_str!("../../../../scenarios/merge-random.toml")),
     ("overtake-random", "overtake-random.toml", include_str!("../../../../scenarios/overtake-random.toml")),
 ];
+
+/// The text's TOML table, or its syntax error.
+fn parse_table(file: &str, text: &str) -> Result<toml::Table, ScenarioError> {
+    text.parse().map_err(|e: toml::de::Error| ScenarioError {
+        file: file.to_string(),
+        kind: ScenarioErrorKind::Syntax(e.to_string()),
+    })
+}
 
 /// Loads a built-in scenario by name (`merge`, `overtake`, `highway`, ...).
 pub fn builtin_scenario(name: &str) -> Option<Result<Scenario, ScenarioError>> {
@@ -91,9 +106,21 @@ impl Scenario {
     /// pairs applied before validation, so they are checked exactly as the file is; those
     /// of every opponent (`opponents.<what>`) last, over any other that sets an opponent.
     pub fn parse(file: &str, text: &str, overrides: &[(String, toml::Value)]) -> Result<Scenario, ScenarioError> {
+        let table = parse_table(file, text)?;
+        let mut scenario = Scenario::from_table(file, table, overrides, Some(text))?;
+        scenario.source = (file.to_string(), text.to_string(), overrides.to_vec());
+        Ok(scenario)
+    }
+
+    /// `parse` from the text's table; `text`, if given, is deserialized in its place when
+    /// there are no overrides, for the parser's line and column in a refusal.
+    fn from_table(
+        file: &str,
+        mut table: toml::Table,
+        overrides: &[(String, toml::Value)],
+        text: Option<&str>,
+    ) -> Result<Scenario, ScenarioError> {
         let fail = |kind| ScenarioError { file: file.to_string(), kind };
-        let mut table: toml::Table =
-            text.parse().map_err(|e: toml::de::Error| fail(ScenarioErrorKind::Syntax(e.to_string())))?;
         let (opponents, others): (Vec<_>, Vec<_>) = overrides.iter().partition(|(key, _)| key.starts_with(OPPONENTS));
         for (key, value) in others {
             apply_override(&mut table, key, value.clone()).map_err(&fail)?;
@@ -105,15 +132,12 @@ impl Scenario {
         if depth > MAX_SCENARIO_DEPTH {
             return Err(fail(ScenarioErrorKind::TooDeep { depth }));
         }
-        let raw: ScenarioFile = if overrides.is_empty() {
-            toml::from_str(text)
-        } else {
-            ScenarioFile::deserialize(toml::Value::Table(table))
+        let raw: ScenarioFile = match text {
+            Some(text) if overrides.is_empty() => toml::from_str(text),
+            _ => ScenarioFile::deserialize(toml::Value::Table(table)),
         }
         .map_err(|e: toml::de::Error| fail(ScenarioErrorKind::Syntax(e.to_string())))?;
-        let mut scenario = raw.validate().map_err(fail)?;
-        scenario.source = (file.to_string(), text.to_string(), overrides.to_vec());
-        Ok(scenario)
+        raw.validate().map_err(fail)
     }
 
     /// The learner-driven vehicles, in file order: the env's `possible_agents`.

@@ -466,3 +466,310 @@ fn opponents_that_cannot_be_set_are_refused_by_name() {
     let style = refused("merge", "opponents.style", "reckless");
     assert!(style.contains("reckless"), "{style}");
 }
+
+// Bounds: what one scenario may cost (`bounds`), on the file and after overrides and draws.
+
+/// `cars` vehicles 10 m apart in four lanes of a long road, the `k`th driven by `driver(k)`;
+/// `sim` and `extra` are spliced in as tables.
+fn crowd(cars: usize, driver: impl Fn(usize) -> &'static str, sim: &str, extra: &str) -> String {
+    let mut text =
+        format!("name = \"t\"\n[sim]\n{sim}\n{extra}\n[road]\nlanes = 4\nspeed_limits = [30.0, 30.0, 30.0, 30.0]\n");
+    text.push_str(&format!("sections = [{{ length = {}.0 }}]\n", 1000 + 10 * cars / 4));
+    for k in 0..cars {
+        let (lane, s) = (k % 4, 10 * (k / 4));
+        text.push_str(&format!(
+            "[[vehicle]]\nname = \"c{k}\"\nlane = {lane}\ns = {s}.0\nspeed = 20.0\ndriver = {}\n",
+            driver(k)
+        ));
+    }
+    text
+}
+
+const IDM: &str = "{ kind = \"idm\" }";
+const AGENT: &str = "{ kind = \"agent\" }";
+const GT: &str = "{ kind = \"gt\", game = \"stackelberg\" }";
+
+/// Passes `at` and refuses `above` with `ScenarioErrorKind::Invalid` naming `key` and the bound.
+fn bound_holds(at: &str, above: &str, key: &str, bound: usize) {
+    if let Err(e) = parse(at) {
+        panic!("at the bound of {key}: {e}");
+    }
+    match parse(above).expect_err("past the bound").kind {
+        ScenarioErrorKind::Invalid { key: named, message } => {
+            assert_eq!(named, key, "{message}");
+            assert!(message.contains(&format!(" {bound} ")), "{message}");
+        }
+        other => panic!("{key}: {other:?}"),
+    }
+}
+
+#[test]
+fn a_road_has_at_most_max_road_sections() {
+    let road = |n: usize| {
+        with("sections = [{ length = 500.0 }]", &format!("sections = [{}]", vec!["{ length = 1.0 }"; n].join(", ")))
+    };
+    bound_holds(&road(MAX_ROAD_SECTIONS), &road(MAX_ROAD_SECTIONS + 1), "road.sections", MAX_ROAD_SECTIONS);
+    assert!(parse(&road(30_000)).unwrap_err().to_string().contains("join consecutive straight sections"));
+}
+
+#[test]
+fn a_scenario_has_at_most_max_vehicles_named_in_traffic_and_both() {
+    let idm = |_| IDM;
+    bound_holds(&crowd(MAX_VEHICLES, idm, "", ""), &crowd(MAX_VEHICLES + 1, idm, "", ""), "vehicle", MAX_VEHICLES);
+    let traffic = |named: usize, count: usize| {
+        crowd(named, idm, "", &format!("[traffic]\ncount = {count}\nspeed = [20.0, 25.0]"))
+    };
+    bound_holds(&traffic(0, MAX_VEHICLES), &traffic(0, MAX_VEHICLES + 1), "traffic.count", MAX_VEHICLES);
+    bound_holds(&traffic(48, MAX_VEHICLES - 48), &traffic(48, MAX_VEHICLES - 47), "traffic.count", MAX_VEHICLES);
+    let message = parse(&traffic(0, 10_001)).unwrap_err().to_string();
+    assert!(message.contains("`traffic.count` 10001") && message.contains("lower traffic.count"), "{message}");
+}
+
+#[test]
+fn a_scenario_has_at_most_max_learners() {
+    let agents = |n: usize| crowd(n + 1, move |k| if k < n { AGENT } else { IDM }, "", "");
+    bound_holds(&agents(MAX_LEARNERS), &agents(MAX_LEARNERS + 1), "vehicle", MAX_LEARNERS);
+}
+
+#[test]
+fn a_scenario_has_at_most_max_gt_cars_named_and_in_traffic() {
+    let named = |n: usize| crowd(n, |_| GT, "", "");
+    bound_holds(&named(MAX_GT_CARS), &named(MAX_GT_CARS + 1), "vehicle", MAX_GT_CARS);
+    let traffic = |named: usize, gt: usize| {
+        let table = format!("[traffic]\ncount = 100\nspeed = [20.0, 25.0]\ngt = {{ count = {gt}, game = \"nash\" }}");
+        crowd(named + 1, move |k| if k < named { GT } else { AGENT }, "", &table)
+    };
+    bound_holds(&traffic(4, MAX_GT_CARS - 4), &traffic(4, MAX_GT_CARS - 3), "traffic.gt.count", MAX_GT_CARS);
+    assert_eq!(parse(&traffic(4, MAX_GT_CARS - 4)).unwrap().gt_cars(), MAX_GT_CARS);
+}
+
+#[test]
+fn an_env_step_takes_at_most_max_physics_ticks() {
+    let sim = |step: f64| crowd(2, |_| IDM, &format!("physics_dt = 0.001\ncontrol_dt = 0.1\nstep_dt = {step:?}"), "");
+    let ticks = MAX_PHYSICS_TICKS_PER_STEP as f64 * 0.001;
+    bound_holds(&sim(ticks), &sim(ticks + 0.001), "sim.physics_dt", MAX_PHYSICS_TICKS_PER_STEP);
+    assert_eq!(parse(&sim(ticks)).unwrap().physics_ticks_per_step(), MAX_PHYSICS_TICKS_PER_STEP);
+    // The step that never ended: a billion ticks.
+    let message = error(&crowd(2, |_| IDM, "physics_dt = 1e-9\nstep_dt = 1.0", ""));
+    assert!(message.contains("`sim.physics_dt`") && message.contains("1000000000 physics ticks"), "{message}");
+}
+
+#[test]
+fn an_env_step_takes_at_most_max_control_periods() {
+    let sim = |step: f64| crowd(2, |_| IDM, &format!("physics_dt = 0.05\ncontrol_dt = 0.1\nstep_dt = {step:?}"), "");
+    let periods = MAX_CONTROL_PERIODS_PER_STEP as f64 * 0.1;
+    bound_holds(&sim(periods), &sim(periods + 0.05), "sim.step_dt", MAX_CONTROL_PERIODS_PER_STEP);
+    assert_eq!(parse(&sim(periods)).unwrap().control_periods_per_step(), MAX_CONTROL_PERIODS_PER_STEP);
+    let message = error(&crowd(2, |_| IDM, "physics_dt = 0.5\ncontrol_dt = 0.5\nstep_dt = 500.0", ""));
+    assert!(message.contains("`sim.step_dt`") && message.contains("1000 control periods"), "{message}");
+}
+
+#[test]
+fn an_env_step_takes_at_most_max_gt_decisions() {
+    // 1 s steps of 0.1 s control periods: 10 decisions a car.
+    let cars = MAX_GT_DECISIONS_PER_STEP / 10;
+    let gt = |n: usize| crowd(n + 1, move |k| if k < n { GT } else { AGENT }, "step_dt = 1.0", "");
+    bound_holds(&gt(cars), &gt(cars + 1), "sim.step_dt", MAX_GT_DECISIONS_PER_STEP);
+    assert_eq!(parse(&gt(cars)).unwrap().gt_decisions_per_step(), MAX_GT_DECISIONS_PER_STEP);
+    let highway = builtin_scenario("highway-gt").unwrap().unwrap();
+    assert_eq!((highway.gt_cars(), highway.control_periods_per_step(), highway.gt_decisions_per_step()), (8, 10, 80));
+    assert_eq!(builtin_scenario("merge").unwrap().unwrap().gt_decisions_per_step(), 1);
+}
+
+#[test]
+fn a_vary_table_draws_at_most_max_vary_keys() {
+    let vary = |n: usize| {
+        let keys: String = (0..n).map(|k| format!("\"vehicle.c{k}.speed\" = {{ range = [19.0, 21.0] }}\n")).collect();
+        format!("{}[vary]\n{keys}", crowd(n, |_| IDM, "", ""))
+    };
+    bound_holds(&vary(MAX_VARY_KEYS), &vary(MAX_VARY_KEYS + 1), "vary", MAX_VARY_KEYS);
+}
+
+#[test]
+fn the_road_reaches_at_most_max_road_extent() {
+    let origin =
+        |x: &str| with("sections = [", &format!("origin = {{ x = {x}, y = 0.0, heading = 0.0 }}\nsections = ["));
+    assert!(parse(&origin("1e6")).is_ok());
+    let message = error(&origin("1.000001e6"));
+    assert!(message.contains("`road.origin.x`") && message.contains("MAX_ROAD_EXTENT"), "{message}");
+    let long = error(&with("{ length = 500.0 }", "{ length = 500.0 }, { length = 1e6 }"));
+    assert!(long.contains("`road.sections` makes the road 1000500 m long"), "{long}");
+    let wide = error(&with("speed_limits", "lane_width = 6e5\nspeed_limits"));
+    assert!(wide.contains("`road.lane_width`") && wide.contains("wide"), "{wide}");
+}
+
+#[test]
+fn non_finite_origins_and_places_are_refused_by_key() {
+    for value in ["nan", "inf", "-inf"] {
+        for (field, key) in [("x", "road.origin.x"), ("y", "road.origin.y"), ("heading", "road.origin.heading")] {
+            let origin = ["x", "y", "heading"].map(|f| format!("{f} = {}", if f == field { value } else { "0.0" }));
+            let text = with("sections = [", &format!("origin = {{ {} }}\nsections = [", origin.join(", ")));
+            let message = error(&text);
+            assert!(message.contains(&format!("`{key}`")) && message.to_lowercase().contains(value), "{message}");
+        }
+        for (place, key) in
+            [(format!("x = {value}\ny = 0.0"), "vehicle 'a'.x"), (format!("x = 10.0\ny = {value}"), "vehicle 'a'.y")]
+        {
+            let message = error(&with("lane = 0\ns = 10.0", &place));
+            assert!(message.contains(&format!("`{key}`")) && message.to_lowercase().contains(value), "{message}");
+        }
+    }
+    // What a NaN place used to become: the road's start, s = 0.
+    assert!(parse(&with("lane = 0\ns = 10.0", "x = 0.0\ny = 0.0")).is_ok());
+}
+
+#[test]
+fn bounds_hold_after_overrides_and_draws() {
+    use rand::SeedableRng;
+    let refuse = |overrides: &[(&str, toml::Value)]| {
+        let overrides: Vec<_> = overrides.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+        Scenario::parse("test.toml", GOOD, &overrides).unwrap_err().to_string()
+    };
+    let ticks = refuse(&[("sim.physics_dt", toml::Value::Float(1e-9)), ("sim.step_dt", toml::Value::Float(1.0))]);
+    assert!(ticks.contains("`sim.physics_dt`"), "{ticks}");
+    let speed = [toml::Value::Float(20.0), toml::Value::Float(25.0)];
+    let traffic = toml::Table::from_iter([
+        ("count".to_string(), toml::Value::Integer(MAX_VEHICLES as i64)),
+        ("speed".to_string(), toml::Value::Array(speed.to_vec())),
+    ]);
+    let traffic = refuse(&[("traffic", toml::Value::Table(traffic))]);
+    assert!(traffic.contains("`traffic.count`") && traffic.contains("2050 vehicles"), "{traffic}");
+    // A draw past a bound is refused as it is, not drawn again.
+    let drawn = format!("{GOOD}\n[vary]\n\"sim.step_dt\" = {{ choose = [1000.0] }}\n");
+    let scenario = parse(&drawn).unwrap();
+    let error = scenario.episode(&mut rand_chacha::ChaCha8Rng::seed_from_u64(0), &[]).unwrap_err().to_string();
+    assert!(error.contains("`sim.physics_dt`") && error.contains("100000 physics ticks"), "{error}");
+}
+
+#[test]
+fn a_vary_that_always_overlaps_is_refused_within_the_budget() {
+    use rand::SeedableRng;
+    let always = format!(
+        "{GOOD}\n[vary]\n\"vehicle.b.lane\" = {{ choose = [0] }}\n\"vehicle.b.s\" = {{ range = [10.0, 12.0] }}\n"
+    );
+    let refused = |text: &str| {
+        let scenario = parse(text).unwrap();
+        scenario.episode(&mut rand_chacha::ChaCha8Rng::seed_from_u64(5), &[]).unwrap_err()
+    };
+    let error = refused(&always);
+    match &error.kind {
+        ScenarioErrorKind::DrawsExhausted { draws, last } => {
+            assert_eq!(*draws, EPISODE_DRAWS);
+            assert!(matches!(**last, ScenarioErrorKind::Overlap { .. }), "{last:?}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let message = error.to_string();
+    assert!(message.contains("20 times") && message.contains("vehicles 'a' and 'b' overlap"), "{message}");
+    assert!(message.contains("Narrow the [vary] ranges"), "{message}");
+    // A file near the 1 MiB an inline scenario may have gets the draws the budget pays for.
+    let padded = format!("{always}# {}\n", "-".repeat(1 << 20));
+    assert!(matches!(refused(&padded).kind, ScenarioErrorKind::DrawsExhausted { draws: 3, .. }));
+    assert_eq!(bounds::episode_draws(1 << 20), VARY_DRAW_BUDGET_BYTES >> 20);
+    // A draw that fits is drawn as before: from one reading of the text.
+    let fits = format!("{GOOD}\n[vary]\n\"vehicle.b.s\" = {{ range = [30.0, 40.0] }}\n");
+    let scenario = parse(&fits).unwrap();
+    let episode = scenario.episode(&mut rand_chacha::ChaCha8Rng::seed_from_u64(5), &[]).unwrap();
+    assert!((30.0..40.0).contains(&episode.vehicles[1].s));
+}
+
+#[test]
+fn a_goal_names_each_lane_and_vehicle_once() {
+    let goal = |table: &str| with("[[vehicle]]\nname = \"a\"", &format!("{table}\n[[vehicle]]\nname = \"a\""));
+    assert!(error(&goal("[goal]\nlanes = [0, 1, 0]")).contains("`goal.lanes` lists lane 0 twice"));
+    assert!(error(&goal("[goal]\nahead_of = [\"b\", \"b\"]")).contains("`goal.ahead_of` names 'b' twice"));
+}
+
+mod overlap {
+    //! The grid's overlap check against every pair, on seeded random placements.
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use crate::dynamics::VehicleParams;
+    use crate::road::{Pose, Road, Section};
+    use crate::scenario::validate::first_overlap;
+    use crate::world::oriented_boxes_overlap;
+
+    /// Straight, tight arcs both ways, and a full circle and more, so that the road
+    /// crosses itself and far-apart s meet.
+    fn roads() -> Vec<Road> {
+        let origin = Pose { x: 3.0, y: -7.0, heading: 0.4 };
+        let bends = vec![
+            Section::Straight { length: 40.0 },
+            Section::Arc { length: 60.0, curvature: 1.0 / 13.0 },
+            Section::Arc { length: 50.0, curvature: -1.0 / 15.0 },
+            Section::Straight { length: 30.0 },
+        ];
+        let circle = vec![Section::Arc { length: 250.0, curvature: 1.0 / 20.0 }];
+        vec![
+            Road::new(origin, bends, 4.0, vec![30.0; 3], &[]),
+            Road::new(origin, circle, 4.0, vec![30.0; 3], &[]),
+            Road::straight(200.0, 3, 4.0, 30.0),
+        ]
+    }
+
+    fn place(road: &Road, cars: usize, rng: &mut ChaCha8Rng) -> Vec<(f64, f64, f64)> {
+        (0..cars)
+            .map(|_| {
+                let s = rng.random_range(0.0..road.length());
+                let d =
+                    rng.random_range(-(road.lane_count() as f64 - 0.5) * road.lane_width()..0.5 * road.lane_width());
+                let pose = road.to_global(s, d, rng.random_range(-0.3..0.3));
+                (pose.x, pose.y, pose.heading)
+            })
+            .collect()
+    }
+
+    fn every_pair(poses: &[(f64, f64, f64)]) -> Vec<(usize, usize)> {
+        let half = (VehicleParams::default().length / 2.0, VehicleParams::default().width / 2.0);
+        (0..poses.len())
+            .flat_map(|i| (i + 1..poses.len()).map(move |j| (i, j)))
+            .filter(|&(i, j)| oriented_boxes_overlap(poses[i], poses[j], half))
+            .collect()
+    }
+
+    #[test]
+    fn the_grid_finds_the_first_pair_every_pair_finds() {
+        let body = VehicleParams::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let (mut overlapping, mut clear) = (0, 0);
+        for road in roads() {
+            for round in 0..300 {
+                let poses = place(&road, 2 + round % 40, &mut rng);
+                let pairs = every_pair(&poses);
+                assert_eq!(first_overlap(&poses, &body), pairs.first().copied(), "{poses:?}");
+                if pairs.is_empty() {
+                    clear += 1
+                } else {
+                    overlapping += 1
+                }
+                // Each pair alone among the cars that touch nothing: found, and named.
+                let lonely: Vec<usize> =
+                    (0..poses.len()).filter(|&k| pairs.iter().all(|&(i, j)| i != k && j != k)).collect();
+                for &(i, j) in &pairs {
+                    let mut cars: Vec<usize> = lonely.iter().copied().chain([i, j]).collect();
+                    cars.sort_unstable();
+                    let subset: Vec<_> = cars.iter().map(|&k| poses[k]).collect();
+                    let found = first_overlap(&subset, &body).map(|(a, b)| (cars[a], cars[b]));
+                    assert_eq!(found, Some((i, j)));
+                }
+            }
+        }
+        assert!(overlapping > 100 && clear > 100, "{overlapping} placements overlap, {clear} do not");
+    }
+
+    #[test]
+    fn a_crowd_in_one_place_is_found_at_once() {
+        let body = VehicleParams::default();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        for road in roads() {
+            // Two thousand cars within a few metres: the first cell's first cars.
+            let mut poses = place(&road, 50, &mut rng);
+            let at = road.to_global(20.0, -4.0, 0.0);
+            poses.extend((0..2000).map(|k| (at.x + 0.001 * k as f64, at.y, at.heading)));
+            let (i, j) = first_overlap(&poses, &body).expect("a crowd overlaps");
+            let half = (body.length / 2.0, body.width / 2.0);
+            assert!(oriented_boxes_overlap(poses[i], poses[j], half));
+        }
+    }
+}

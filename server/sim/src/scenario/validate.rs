@@ -2,7 +2,10 @@
 //! the road, named once, not overlapping), traffic, reward, goal. Each refusal says which
 //! key or vehicle is wrong and why; what passes here builds a world without a panic.
 
-use super::file::{DriverFile, GoalFile, RewardFile, RoadFile, ScenarioFile, TrafficFile, VehicleFile};
+use std::collections::{HashMap, HashSet};
+
+use super::bounds::MAX_ROAD_EXTENT;
+use super::file::{DriverFile, GoalFile, OriginFile, RewardFile, RoadFile, ScenarioFile, TrafficFile, VehicleFile};
 use super::vary::validate_vary;
 use super::{DriverSpec, Goal, GtTraffic, RewardSpec, Scenario, ScenarioErrorKind, TrafficSpec, VehicleSpec};
 use crate::dynamics::VehicleParams;
@@ -24,6 +27,7 @@ impl ScenarioFile {
         if sim.control_dt < sim.physics_dt || sim.step_dt < sim.physics_dt {
             return Err(invalid("sim.physics_dt", "must not exceed control_dt and step_dt".into()));
         }
+        self.check_bounds()?;
         // The world ticks round(period / physics_dt) times per period: a step that does not
         // divide it would silently stretch the control period (0.04 s makes 0.12 s of 0.1 s).
         for (key, period) in [("sim.control_dt", sim.control_dt), ("sim.step_dt", sim.step_dt)] {
@@ -97,10 +101,21 @@ impl GoalFile {
                     format!("lists lane {lane}, but the road's lanes are 0..={}", road.lane_count() - 1),
                 ));
             }
+            if lanes.contains(&LaneId(lane as u32)) {
+                return Err(invalid("goal.lanes", format!("lists lane {lane} twice; list each lane once")));
+            }
             lanes.push(LaneId(lane as u32));
         }
-        if let Some(name) = self.ahead_of.iter().find(|name| !vehicles.iter().any(|v| &v.name == *name)) {
-            return Err(invalid("goal.ahead_of", format!("names '{name}', which is no [[vehicle]] of the file")));
+        // Each name once, and a set to look them up in: the list can be as long as the file.
+        let names: HashSet<&str> = vehicles.iter().map(|v| v.name.as_str()).collect();
+        let mut listed = HashSet::with_capacity(self.ahead_of.len());
+        for name in &self.ahead_of {
+            if !names.contains(name.as_str()) {
+                return Err(invalid("goal.ahead_of", format!("names '{name}', which is no [[vehicle]] of the file")));
+            }
+            if !listed.insert(name.as_str()) {
+                return Err(invalid("goal.ahead_of", format!("names '{name}' twice; name each vehicle once")));
+            }
         }
         Ok(Goal { lanes, ahead_of: self.ahead_of.clone() })
     }
@@ -165,8 +180,46 @@ impl RoadFile {
             }
             ends.push((LaneId(end.lane as u32), end.s));
         }
-        let origin = Pose { x: self.origin.x, y: self.origin.y, heading: self.origin.heading };
+        let origin = self.origin()?;
+        let width = self.lane_width * self.lanes as f64;
+        for (key, extent) in [("road.sections", length), ("road.lane_width", width)] {
+            if extent > MAX_ROAD_EXTENT {
+                return Err(invalid(
+                    key,
+                    format!(
+                        "makes the road {extent} m {}, more than the {MAX_ROAD_EXTENT} m a road may reach \
+                         (MAX_ROAD_EXTENT); make it smaller",
+                        if key == "road.sections" { "long" } else { "wide" }
+                    ),
+                ));
+            }
+        }
         Ok(Road::new(origin, sections, self.lane_width, self.speed_limits.clone(), &ends))
+    }
+}
+
+impl RoadFile {
+    /// Where the road starts: finite, and within `MAX_ROAD_EXTENT` of (0, 0).
+    fn origin(&self) -> Result<Pose, ScenarioErrorKind> {
+        let OriginFile { x, y, heading } = self.origin;
+        for (key, value) in [("road.origin.x", x), ("road.origin.y", y)] {
+            if !(value.is_finite() && value.abs() <= MAX_ROAD_EXTENT) {
+                return Err(ScenarioErrorKind::Invalid {
+                    key: key.to_string(),
+                    message: format!(
+                        "must be a number of metres within ±{MAX_ROAD_EXTENT} (MAX_ROAD_EXTENT), not {value}; \
+                         place the road nearer (0, 0)"
+                    ),
+                });
+            }
+        }
+        if !heading.is_finite() {
+            return Err(ScenarioErrorKind::Invalid {
+                key: "road.origin.heading".to_string(),
+                message: format!("must be a number of radians, not {heading}"),
+            });
+        }
+        Ok(Pose { x, y, heading })
     }
 }
 
@@ -196,6 +249,12 @@ impl VehicleFile {
                 (s, road.lane_center(lane), lane)
             }
             (None, None, Some(x), Some(y)) => {
+                // The road's nearest point to NaN is its start: refuse it rather than place the car there.
+                for (field, value) in [("x", x), ("y", y)] {
+                    if !value.is_finite() {
+                        return Err(invalid(field, format!("must be a number of metres, not {value}")));
+                    }
+                }
                 let (s, d) = road.to_frenet(x, y);
                 let lane = road.lane_at(s, d).ok_or_else(|| ScenarioErrorKind::OffRoad {
                     vehicle: vehicle.clone(),
@@ -244,29 +303,72 @@ impl VehicleFile {
 }
 
 fn check_names_and_overlaps(vehicles: &[VehicleSpec], road: &Road) -> Result<(), ScenarioErrorKind> {
-    let body = VehicleParams::default();
+    let mut names = HashSet::with_capacity(vehicles.len());
+    if let Some(twice) = vehicles.iter().find(|v| !names.insert(v.name.as_str())) {
+        return Err(ScenarioErrorKind::DuplicateName(twice.name.clone()));
+    }
+    let poses: Vec<_> = vehicles
+        .iter()
+        .map(|v| {
+            let pose = road.to_global(v.s, v.d, 0.0);
+            (pose.x, pose.y, pose.heading)
+        })
+        .collect();
+    match first_overlap(&poses, &VehicleParams::default()) {
+        Some((i, j)) => {
+            Err(ScenarioErrorKind::Overlap { first: vehicles[i].name.clone(), second: vehicles[j].name.clone() })
+        }
+        None => Ok(()),
+    }
+}
+
+/// Two bodies (x, y, heading) that overlap, the first such pair (i < j) in order, in
+/// about n log n time. Why none is missed: two overlapping boxes have centres at most
+/// their two half-diagonals apart, so in a grid of cells a little wider than that, they
+/// lie in the same or neighbouring cells; this holds in the global frame whatever the
+/// road does (arcs, lanes' offsets, a road that crosses itself), where a window along s
+/// would have to bound how far an arc brings distant s together. Each car is compared
+/// with the cars of its 3 x 3 cells: the same pairs as every pair, less those too far
+/// apart to touch, so the same first pair. Why it is fast: cars that do not overlap pack
+/// at most `crowd` to a cell (their area fits in the cell widened by a half-diagonal on
+/// every side); a cell holding more holds an overlapping pair among any `crowd` + 1 of
+/// its cars, found among those (the pair may then differ from the first in order).
+pub(super) fn first_overlap(poses: &[(f64, f64, f64)], body: &VehicleParams) -> Option<(usize, usize)> {
     let half = (body.length / 2.0, body.width / 2.0);
-    for (i, a) in vehicles.iter().enumerate() {
-        for b in &vehicles[i + 1..] {
-            if a.name == b.name {
-                return Err(ScenarioErrorKind::DuplicateName(a.name.clone()));
-            }
-            let pa = road.to_global(a.s, a.d, 0.0);
-            let pb = road.to_global(b.s, b.d, 0.0);
-            if crate::world::oriented_boxes_overlap((pa.x, pa.y, pa.heading), (pb.x, pb.y, pb.heading), half) {
-                return Err(ScenarioErrorKind::Overlap { first: a.name.clone(), second: b.name.clone() });
-            }
+    // Metres to spare over the reach: coordinates stay within MAX_ROAD_EXTENT, where a
+    // rounding is nanometres.
+    let cell = 2.0 * half.0.hypot(half.1) + 0.1;
+    let crowd = ((2.0 * cell).powi(2) / (body.length * body.width)) as usize;
+    let key = |&(x, y, _): &(f64, f64, f64)| ((x / cell).floor() as i64, (y / cell).floor() as i64);
+    let mut cells: HashMap<(i64, i64), Vec<usize>> = HashMap::with_capacity(poses.len());
+    for (i, pose) in poses.iter().enumerate() {
+        cells.entry(key(pose)).or_default().push(i);
+    }
+    let overlap = |i: usize, j: usize| crate::world::oriented_boxes_overlap(poses[i], poses[j], half);
+    let first_among = |cars: &[usize]| {
+        cars.iter().enumerate().find_map(|(k, &i)| cars[k + 1..].iter().find(|&&j| overlap(i, j)).map(|&j| (i, j)))
+    };
+    // Visited in a fixed order, so the same file names the same pair every time.
+    let mut crowded: Vec<&Vec<usize>> = cells.values().filter(|cars| cars.len() > crowd).collect();
+    crowded.sort_unstable();
+    for cars in crowded {
+        // The packing bound says the first crowd + 1 hold a pair; all of them if rounding
+        // ever says otherwise.
+        if let Some(pair) = first_among(&cars[..=crowd]).or_else(|| first_among(cars)) {
+            return Some(pair);
         }
     }
-    Ok(())
+    poses.iter().enumerate().find_map(|(i, pose)| {
+        let (cx, cy) = key(pose);
+        let near = (-1..=1).flat_map(|dx| (-1..=1).map(move |dy| (cx.saturating_add(dx), cy.saturating_add(dy))));
+        let later = near.filter_map(|c| cells.get(&c)).flatten().filter(|&&j| j > i && overlap(i, j));
+        later.min().map(|&j| (i, j))
+    })
 }
 
 impl TrafficFile {
     fn validate(self, road: &Road) -> Result<TrafficSpec, ScenarioErrorKind> {
         let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
-        if self.count > 10_000 {
-            return Err(invalid("traffic.count", format!("{} is more than the 10000 a world supports", self.count)));
-        }
         if !(self.density.is_finite() && self.density > 0.0) {
             return Err(invalid("traffic.density", format!("must be positive, not {}", self.density)));
         }

@@ -1,10 +1,11 @@
 //! Per-episode draws: the `[vary]` table (each key a dotted override, each value a range
 //! or a choice) validated into `Variation`s, and `Scenario::episode`, which draws them
 //! from the env's RNG and validates the result as a file, retrying a draw that places
-//! two cars overlapping.
+//! two cars overlapping, within the budget of `bounds`.
 
 use rand::{Rng, RngExt};
 
+use super::bounds::{MAX_VARY_KEYS, episode_draws};
 use super::{Scenario, ScenarioError, ScenarioErrorKind};
 
 /// One value a scenario draws afresh for each episode.
@@ -16,36 +17,44 @@ pub enum Variation {
     Choose(Vec<toml::Value>),
 }
 
-/// Draws that may fail validation (two cars placed overlapping, say) are retried this
-/// many times before the episode is refused.
-const EPISODE_DRAWS: usize = 20;
-
 impl Scenario {
     /// The scenario of one episode: its `[vary]` values drawn from `rng`, then `extra`
-    /// overrides applied (the reset's own). With neither, the scenario itself.
+    /// overrides applied (the reset's own). With neither, the scenario itself. Draws that
+    /// place two cars on each other or off the road are made again, `EPISODE_DRAWS` times
+    /// at most and fewer for a large file (`VARY_DRAW_BUDGET_BYTES`); then the reset is
+    /// refused with `DrawsExhausted`.
     pub fn episode(&self, rng: &mut impl Rng, extra: &[(String, toml::Value)]) -> Result<Scenario, ScenarioError> {
         if self.vary.is_empty() && extra.is_empty() {
             return Ok(self.clone());
         }
         let (file, text, overrides) = &self.source;
+        // Read once: each draw starts from a copy of the table, not from the text.
+        let table = super::parse_table(file, text)?;
         // Only drawn values can be drawn again: with nothing to vary, one attempt.
-        let attempts = if self.vary.is_empty() { 1 } else { EPISODE_DRAWS };
+        let draws = if self.vary.is_empty() { 1 } else { episode_draws(text.len()) };
         let mut attempt = 1;
         loop {
             let mut all = overrides.clone();
             all.extend(self.vary.iter().map(|(key, variation)| (key.clone(), variation.draw(rng))));
             all.extend(extra.iter().cloned());
-            match Scenario::parse(file, text, &all) {
+            match Scenario::from_table(file, table.clone(), &all, None) {
+                Ok(mut scenario) => {
+                    scenario.source = (file.clone(), text.clone(), all);
+                    return Ok(scenario);
+                }
                 Err(error)
-                    if attempt < attempts
-                        && matches!(
-                            error.kind,
-                            ScenarioErrorKind::Overlap { .. } | ScenarioErrorKind::OffRoad { .. }
-                        ) =>
+                    if matches!(error.kind, ScenarioErrorKind::Overlap { .. } | ScenarioErrorKind::OffRoad { .. }) =>
                 {
+                    if self.vary.is_empty() {
+                        return Err(error);
+                    }
+                    if attempt == draws {
+                        let kind = ScenarioErrorKind::DrawsExhausted { draws, last: Box::new(error.kind) };
+                        return Err(ScenarioError { kind, ..error });
+                    }
                     attempt += 1;
                 }
-                result => return result,
+                Err(error) => return Err(error),
             }
         }
     }
@@ -69,6 +78,16 @@ pub(super) fn validate_vary(vary: &toml::Table) -> Result<Vec<(String, Variation
         message: message.to_string(),
     };
     let form = "must be { range = [low, high] } with numbers low <= high, or { choose = [value, ...] }";
+    if vary.len() > MAX_VARY_KEYS {
+        return Err(ScenarioErrorKind::Invalid {
+            key: "vary".to_string(),
+            message: format!(
+                "draws {} keys, more than the {MAX_VARY_KEYS} a scenario may draw (MAX_VARY_KEYS); \
+                 draw fewer values",
+                vary.len()
+            ),
+        });
+    }
     let mut out = Vec::with_capacity(vary.len());
     for (key, value) in vary {
         let table = value.as_table().ok_or_else(|| invalid(key, form))?;

@@ -1,13 +1,18 @@
 //! Lane geometry: a reference line made of straight and circular-arc sections, lanes
 //! laid side by side along it, lanes that end, and the Frenet (s, d) <-> global (X, Y)
-//! conversion every other module reads positions through.
+//! conversion every other module reads positions through; (X, Y) -> (s, d) searches a
+//! spatial index of the sections (`index`) built with the road.
 //!
 //! Conventions, as in the paper's Scenario B: lane 0 is the leftmost lane and lane
 //! indices grow to the right, so a lane change with sigma = -1 goes to `lane - 1`. The
 //! lateral offset `d` is measured to the left of the reference line, which is the centre
 //! line of lane 0; lane `i` has its centre at `d = -i * lane_width`.
 
+mod index;
+
+use index::SectionIndex;
 use serde::{Deserialize, Serialize};
+use std::fmt;
 
 /// Index of a lane, 0 = leftmost.
 #[repr(transparent)]
@@ -115,7 +120,8 @@ struct SectionStart {
 }
 
 /// A multi-lane road.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, PartialEq, Serialize, Deserialize)]
+#[serde(from = "RoadFields")]
 pub struct Road {
     sections: Vec<Section>,
     starts: Vec<SectionStart>,
@@ -125,6 +131,44 @@ pub struct Road {
     /// Per lane: the speed limit (m/s), `v_max` of eq. (14).
     speed_limits: Vec<f64>,
     length: f64,
+    /// Where `to_frenet` looks for the nearest section; it follows from the fields above.
+    #[serde(skip)]
+    index: SectionIndex,
+}
+
+/// A road as it is written: its fields but the index. Deserializing goes through this so
+/// the index is rebuilt from what was read and the format stays the one before the index.
+#[derive(Deserialize)]
+struct RoadFields {
+    sections: Vec<Section>,
+    starts: Vec<SectionStart>,
+    lane_width: f64,
+    lane_ends: Vec<f64>,
+    speed_limits: Vec<f64>,
+    length: f64,
+}
+
+/// The derived text without the index: a scenario's identity hashes this text, so it stays
+/// what it was before the index.
+impl fmt::Debug for Road {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Road")
+            .field("sections", &self.sections)
+            .field("starts", &self.starts)
+            .field("lane_width", &self.lane_width)
+            .field("lane_ends", &self.lane_ends)
+            .field("speed_limits", &self.speed_limits)
+            .field("length", &self.length)
+            .finish()
+    }
+}
+
+impl From<RoadFields> for Road {
+    fn from(fields: RoadFields) -> Road {
+        let RoadFields { sections, starts, lane_width, lane_ends, speed_limits, length } = fields;
+        let index = SectionIndex::new(&sections, &starts);
+        Road { sections, starts, lane_width, lane_ends, speed_limits, length, index }
+    }
 }
 
 impl Road {
@@ -151,7 +195,7 @@ impl Road {
         for &(lane, end) in lane_ends {
             ends[lane.0 as usize] = end.min(s);
         }
-        Road { sections, starts, lane_width, lane_ends: ends, speed_limits, length: s }
+        RoadFields { sections, starts, lane_width, lane_ends: ends, speed_limits, length: s }.into()
     }
 
     /// A straight road, the common case in tests and benchmarks.
@@ -250,8 +294,20 @@ impl Road {
         Pose { x: reference.x - d * sin, y: reference.y + d * cos, heading: reference.heading + relative_heading }
     }
 
-    /// Global (X, Y) -> Frenet (s, d): the nearest point of the reference line.
+    /// Global (X, Y) -> Frenet (s, d): the nearest point of the reference line, on the
+    /// first of equally near sections. A point with a non-finite coordinate is at no finite
+    /// distance from any section, and gets (0, 0).
     pub fn to_frenet(&self, x: f64, y: f64) -> (f64, f64) {
+        if !(x.is_finite() && y.is_finite()) {
+            return (0.0, 0.0);
+        }
+        let nearest = self.index.nearest(x, y, |i| foot(self.sections[i], self.starts[i], x, y));
+        nearest.unwrap_or((0.0, 0.0))
+    }
+
+    /// `to_frenet` as it was before the index: every section measured, the first nearest kept.
+    #[cfg(test)]
+    fn to_frenet_scan(&self, x: f64, y: f64) -> (f64, f64) {
         let mut best = (f64::INFINITY, 0.0, 0.0);
         for (section, start) in self.sections.iter().zip(&self.starts) {
             let (along, d) = project(start.pose, section.curvature(), x, y);
@@ -266,10 +322,24 @@ impl Road {
     }
 }
 
+/// The point of a section's reference line nearest (x, y): its distance, and its (s, d).
+fn foot(section: Section, start: SectionStart, x: f64, y: f64) -> (f64, (f64, f64)) {
+    let (along, d) = project(start.pose, section.curvature(), x, y);
+    let clamped = along.clamp(0.0, section.length());
+    let foot = advance(start.pose, section.curvature(), clamped);
+    ((foot.x - x).hypot(foot.y - y), (start.s + clamped, d))
+}
+
+/// Below this curvature (1/m) a section is computed as a line: the arc's formulas would
+/// lose their digits to a radius of over 1e12 m.
+fn is_straight(curvature: f64) -> bool {
+    curvature.abs() < 1e-12
+}
+
 /// Moves along a circle of the given curvature (a line if zero) by `length`.
 fn advance(pose: Pose, curvature: f64, length: f64) -> Pose {
     let heading = pose.heading + curvature * length;
-    if curvature.abs() < 1e-12 {
+    if is_straight(curvature) {
         let (sin, cos) = pose.heading.sin_cos();
         return Pose { x: pose.x + length * cos, y: pose.y + length * sin, heading };
     }
@@ -285,7 +355,7 @@ fn advance(pose: Pose, curvature: f64, length: f64) -> Pose {
 fn project(start: Pose, curvature: f64, x: f64, y: f64) -> (f64, f64) {
     let (sin, cos) = start.heading.sin_cos();
     let (dx, dy) = (x - start.x, y - start.y);
-    if curvature.abs() < 1e-12 {
+    if is_straight(curvature) {
         return (dx * cos + dy * sin, -dx * sin + dy * cos);
     }
     let radius = 1.0 / curvature;
@@ -304,6 +374,8 @@ fn wrap(angle: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     fn curved() -> Road {
         let origin = Pose { x: 0.0, y: 4.0, heading: 0.0 };
@@ -347,5 +419,106 @@ mod tests {
         assert_eq!(road.lane_at(100.0, -10.1), None);
         assert!(road.contains(100.0, -1.9) && !road.contains(-1.0, 0.0));
         assert_eq!(road.nearest_lane(-5.0), LaneId(1));
+    }
+
+    /// A road of `count` straight and arc sections (both signs, some turning full circles)
+    /// from a random origin, every radius wider than the road as `scenario` requires.
+    fn random_road(rng: &mut ChaCha8Rng, count: usize) -> Road {
+        let lanes = rng.random_range(1..=5);
+        let lane_width = rng.random_range(2.5..4.5);
+        let origin = Pose {
+            x: rng.random_range(-1e4..1e4),
+            y: rng.random_range(-1e4..1e4),
+            heading: rng.random_range(-10.0..10.0),
+        };
+        let width = lane_width * lanes as f64;
+        let sections = (0..count)
+            .map(|_| {
+                let length = 10f64.powf(rng.random_range(-1.0..2.5));
+                if rng.random_bool(0.4) {
+                    return Section::Straight { length };
+                }
+                let radius = width * (1.0 + 10f64.powf(rng.random_range(-3.0..4.0)));
+                let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+                Section::Arc { length, curvature: sign / radius }
+            })
+            .collect();
+        Road::new(origin, sections, lane_width, vec![30.0; lanes], &[])
+    }
+
+    /// Points near the road (about its lanes, past its ends, on its joints, at its arcs'
+    /// centres, where many sections are equally near), far from it, and not finite.
+    fn query_points(rng: &mut ChaCha8Rng, road: &Road) -> Vec<(f64, f64)> {
+        let width = road.lane_width() * road.lane_count() as f64;
+        let mut points = Vec::new();
+        for _ in 0..100 {
+            let s = rng.random_range(-20.0..road.length() + 20.0);
+            let pose = road.to_global(s, rng.random_range(-3.0 * width..3.0 * width), 0.0);
+            points.push((pose.x, pose.y));
+        }
+        for _ in 0..20 {
+            let start = road.starts[rng.random_range(0..road.starts.len())];
+            let pose = road.to_global(start.s, rng.random_range(-width..width), rng.random_range(-1.0..1.0));
+            points.push((pose.x, pose.y));
+            points.push((start.pose.x + rng.random_range(-5.0..5.0), start.pose.y + rng.random_range(-5.0..5.0)));
+            points.push((start.pose.x, start.pose.y));
+            let section = road.sections[road.section_index(start.s)];
+            if let Section::Arc { curvature, .. } = section {
+                let (sin, cos) = start.pose.heading.sin_cos();
+                points.push((start.pose.x - sin / curvature, start.pose.y + cos / curvature));
+            }
+        }
+        let reach = road.length() + 1e3;
+        let origin = road.starts[0].pose;
+        for _ in 0..30 {
+            points.push((origin.x + rng.random_range(-reach..reach), origin.y + rng.random_range(-reach..reach)));
+        }
+        let odd = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e300, -1e300, f64::MAX, 0.0];
+        for &x in &odd {
+            points.push((x, origin.y));
+            points.push((origin.x, x));
+            points.push((x, x));
+        }
+        points
+    }
+
+    fn bits((s, d): (f64, f64)) -> (u64, u64) {
+        (s.to_bits(), d.to_bits())
+    }
+
+    #[test]
+    fn indexed_frenet_is_the_scan_bit_for_bit() {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        for case in 0..300 {
+            let count = (10f64.powf(rng.random_range(0.0..3.3)) as usize).max(1);
+            let road = random_road(&mut rng, count);
+            for (x, y) in query_points(&mut rng, &road) {
+                let (indexed, scan) = (road.to_frenet(x, y), road.to_frenet_scan(x, y));
+                assert_eq!(
+                    bits(indexed),
+                    bits(scan),
+                    "case {case}, {count} sections, ({x}, {y}): {indexed:?} vs {scan:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_road_read_back_equals_its_original_and_finds_the_same_feet() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let road = random_road(&mut rng, 50);
+        let back: Road = toml::from_str(&toml::to_string(&road).unwrap()).unwrap();
+        assert_eq!(back, road);
+        for (x, y) in query_points(&mut rng, &road) {
+            assert_eq!(bits(back.to_frenet(x, y)), bits(road.to_frenet_scan(x, y)));
+        }
+    }
+
+    #[test]
+    fn debug_text_is_the_fields_without_the_index() {
+        let text = format!("{:?}", Road::straight(100.0, 1, 4.0, 30.0));
+        let fields = "sections: [Straight { length: 100.0 }], starts: [SectionStart { s: 0.0, pose: Pose { x: 0.0, \
+            y: 0.0, heading: 0.0 } }], lane_width: 4.0, lane_ends: [100.0], speed_limits: [30.0], length: 100.0";
+        assert_eq!(text, format!("Road {{ {fields} }}"));
     }
 }

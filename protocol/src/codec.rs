@@ -61,6 +61,13 @@ pub fn peek_version(bytes: &[u8]) -> Option<u16> {
     bincode::serde::decode_from_slice::<u16, _>(bytes, config()).ok().map(|(version, _)| version)
 }
 
+/// The client id after a request's version, read without decoding the body: a server
+/// queues a request by its sender before paying for the rest. `None` when the front is
+/// not a version and an id.
+pub fn peek_client(bytes: &[u8]) -> Option<crate::ClientId> {
+    bincode::serde::decode_from_slice::<(u16, crate::ClientId), _>(bytes, config()).ok().map(|((_, client), _)| client)
+}
+
 fn invalid(error: bincode::error::DecodeError) -> DecodeError {
     use bincode::error::DecodeError as E;
     DecodeError::Invalid(match error {
@@ -162,6 +169,13 @@ mod tests {
         assert_eq!(peek_version(&future), Some(300));
         assert_eq!(peek_version(&[]), None);
         assert_eq!(peek_version(&[252, 0, 0, 1, 0]), None, "a u32-sized first varint is not a version");
+    }
+
+    #[test]
+    fn peek_client_reads_the_sender_before_the_body() {
+        // Version 300, client 7 (one varint byte), then a body this version lacks.
+        assert_eq!(peek_client(&[251, 0x2c, 0x01, 7, 99, 1, 2, 3]), Some(ClientId(7)));
+        assert_eq!(peek_client(&[1]), None, "a version alone names no client");
     }
 
     // The layout of docs/protocol.md, with every expected byte derived by hand from the

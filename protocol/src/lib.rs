@@ -52,7 +52,7 @@ pub mod session;
 mod spaces;
 mod world;
 
-pub use codec::{MAX_MESSAGE_BYTES, decode, encode, peek_version};
+pub use codec::{MAX_MESSAGE_BYTES, decode, encode, peek_client, peek_version};
 pub use error::{DecodeError, ErrorCode, ErrorReply, KeyError};
 pub use explain::{DecisionExplained, GameTable, PathPoint};
 pub use info::{EndReason, Info, InfoKind, InfoValue};

@@ -8,7 +8,10 @@
 //! Memory freed when clients leave is handed back to the system here (`memory::return_freed_memory`).
 //! Once a reset's or a step's reply is sent, the env's next decisions are made on the
 //! decision pool's thread (`Registry::decide_ahead`).
+//! Zenoh's threads only receive: each request is computed on the runtime's blocking pool,
+//! queued by its sender (`dispatch`), so a busy env never holds up another client.
 
+mod dispatch;
 mod limits;
 mod memory;
 mod registry;
@@ -17,14 +20,18 @@ mod scenarios;
 use std::sync::{Arc, RwLock};
 use std::time::{Duration, Instant};
 
-use arena_protocol::{ClientTag, ErrorCode, ErrorReply, PROTOCOL_VERSION, Reply, ReplyBody, encode, keys};
+use arena_protocol::{
+    ClientId, ClientTag, ErrorCode, ErrorReply, PROTOCOL_VERSION, Reply, ReplyBody, encode, keys, peek_client,
+};
 use zenoh::Wait;
 use zenoh::sample::SampleKind;
 
 pub use limits::{Limits, ORPHAN_GRACE};
-pub use registry::{Ahead, Registry};
+pub use registry::{Ahead, MAX_CLIENT_TAGS, Registry};
 pub use scenarios::Scenarios;
 
+use dispatch::Dispatch;
+use limits::Party;
 use memory::return_freed_memory;
 
 /// How long a closing server keeps answering `ShuttingDown` after the requests in flight
@@ -82,29 +89,34 @@ impl Server {
                 env_usable: false,
             }),
         });
+        // One party computes at most as many requests at once as there are cores.
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let dispatch = Arc::new(Dispatch::new(tokio::runtime::Handle::current(), cores));
         let queryable = session
             .declare_queryable(rpc)
             .callback(move |query| {
-                let open = gate.read().unwrap_or_else(|poisoned| poisoned.into_inner());
-                let (answer, ahead) = if *open {
-                    let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
-                    let user = keys::rpc_user(&rpc_prefix, &rpc_server, query.key_expr().as_str());
-                    handler.handle_then(user.as_deref(), &bytes)
-                } else {
-                    (shutting_down.clone(), None)
-                };
-                if let Err(e) = query.reply(query.key_expr().clone(), answer).wait() {
-                    eprintln!("arena-server: could not send a reply: {e}");
-                }
-                drop(query);
-                drop(open);
-                // While the reply travels and the client picks its next actions, this
-                // env's next decisions are made on another thread: this one receives the
-                // next request, which stops them.
-                if let Some(ahead) = ahead {
-                    let registry = Arc::clone(&handler);
-                    arena_sim::beside_decisions(move || registry.decide_ahead(ahead));
-                }
+                let bytes = query.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+                let user = keys::rpc_user(&rpc_prefix, &rpc_server, query.key_expr().as_str());
+                // Undecodable requests share one queue: answering them costs a decode.
+                let party = Party::of(user.as_deref(), peek_client(&bytes).unwrap_or(ClientId(0)));
+                let (handler, gate, shutting_down) = (Arc::clone(&handler), Arc::clone(&gate), shutting_down.clone());
+                dispatch.run(party, move || {
+                    let open = gate.read().unwrap_or_else(|poisoned| poisoned.into_inner());
+                    let (answer, ahead) =
+                        if *open { handler.handle_then(user.as_deref(), &bytes) } else { (shutting_down, None) };
+                    if let Err(e) = query.reply(query.key_expr().clone(), answer).wait() {
+                        eprintln!("arena-server: could not send a reply: {e}");
+                    }
+                    drop(query);
+                    drop(open);
+                    // While the reply travels and the client picks its next actions, this
+                    // env's next decisions are made on another thread: the next request
+                    // stops them.
+                    if let Some(ahead) = ahead {
+                        let registry = Arc::clone(&handler);
+                        arena_sim::beside_decisions(move || registry.decide_ahead(ahead));
+                    }
+                });
             })
             .await?;
 
@@ -142,6 +154,7 @@ impl Server {
             .await?;
 
         let sweeper_registry = Arc::clone(&registry);
+        let (sweeper_session, sweeper_prefix) = (session.clone(), prefix.to_string());
         // Every second at most, so envs of clients that showed no token are gone within
         // `ORPHAN_GRACE` + 1 s.
         let period = (limits.idle_timeout / 4).clamp(Duration::from_millis(100), Duration::from_secs(1));
@@ -150,6 +163,16 @@ impl Server {
             loop {
                 tokio::time::sleep(period).await;
                 let now = Instant::now();
+                let mut asked = tokio::task::JoinSet::new();
+                for owner in sweeper_registry.unseen_owners(now) {
+                    let (session, prefix) = (sweeper_session.clone(), sweeper_prefix.clone());
+                    asked.spawn(async move { token_alive(&session, &prefix, owner).await.then_some(owner) });
+                }
+                while let Some(answer) = asked.join_next().await {
+                    if let Ok(Some(owner)) = answer {
+                        sweeper_registry.client_arrived(owner);
+                    }
+                }
                 let idle = sweeper_registry.reclaim_idle(now);
                 let orphans = sweeper_registry.reclaim_orphans(now);
                 // Zenoh's idle connection threads exit about 10 s after a burst of
@@ -212,4 +235,15 @@ impl Server {
         _clients.undeclare().await?;
         session.close().await
     }
+}
+
+/// How long the sweeper waits for a client's liveliness token to answer.
+const TOKEN_QUERY_TIMEOUT: Duration = Duration::from_millis(500);
+
+/// Whether the client tagged `owner` has a liveliness token now, asked of the network:
+/// for an owner the registry has no record of (`Registry::unseen_owners`).
+async fn token_alive(session: &zenoh::Session, prefix: &str, owner: ClientTag) -> bool {
+    let Ok(key) = keys::client_liveliness(prefix, &owner.to_string()) else { return false };
+    let Ok(replies) = session.liveliness().get(key).timeout(TOKEN_QUERY_TIMEOUT).await else { return false };
+    replies.recv_async().await.is_ok_and(|reply| reply.result().is_ok())
 }

@@ -26,8 +26,11 @@ pub struct Process {
 
 impl Process {
     /// Starts `arena-server` with `args` in the repository's root and reads its banner.
+    /// `$ARENA_TEST_SERVER` names another binary (an older build, to show a test fails there).
     pub fn start(args: &[&str]) -> Process {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_arena-server"))
+        let binary =
+            std::env::var("ARENA_TEST_SERVER").unwrap_or_else(|_| env!("CARGO_BIN_EXE_arena-server").to_string());
+        let mut child = Command::new(binary)
             .args(args)
             .current_dir(repo_root())
             .stdout(Stdio::piped())

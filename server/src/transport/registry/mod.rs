@@ -3,6 +3,9 @@
 //! of envs, sequence numbers that make retries safe (`sequence`), env limits and
 //! reclaiming — so each can be tested without a network and the queryable stays thin.
 //! Batches of steps are `batch`'s.
+//! What the server needs to know of an env without stepping it (owner, party, creation,
+//! last use) lives beside the env's lock, never under it: the sweeper, `ServerInfo`,
+//! create, close and the owner check never wait for an env that is busy.
 
 mod batch;
 mod sequence;
@@ -10,7 +13,7 @@ mod sequence;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use arena_protocol::{
     AgentStep, ClientId, ClientTag, CreateOptions, EnvId, ErrorCode, ErrorReply, MAX_MESSAGE_BYTES, PROTOCOL_VERSION,
@@ -25,28 +28,40 @@ use crate::env::Env;
 use batch::Single;
 use sequence::{ReplyCache, Tombstones};
 
-/// One env and what the server remembers about it.
+/// The most client tags remembered beyond those of envs' owners (about 50 bytes each):
+/// a session declaring tokens in a loop grows the registry by no more than this.
+pub const MAX_CLIENT_TAGS: usize = 4096;
+
+/// One env and what the server remembers about it: who owns it, outside the env's lock.
 struct Slot {
-    env: Env,
     owner: ClientId,
     /// `owner.tag()`, what its liveliness token shows: computed once, read when clients leave.
     owner_tag: ClientTag,
     party: Party,
     created: Instant,
+    /// When a request last touched it, as nanoseconds since `Registry::epoch`.
+    last_used: AtomicU64,
+    work: Mutex<Work>,
+}
+
+/// What a request works on, under the env's lock.
+struct Work {
+    env: Env,
     replies: ReplyCache,
-    last_used: Instant,
 }
 
 /// An env's decisions to make ahead once a reset's or a step's reply is sent
 /// (`Registry::handle_then`, `Registry::decide_ahead`).
-pub struct Ahead(Arc<Mutex<Slot>>);
+pub struct Ahead(Arc<Slot>);
 
 /// Every env of one server.
 pub struct Registry {
     server_id: String,
     scenarios: Scenarios,
     limits: Limits,
-    envs: Mutex<HashMap<EnvId, Arc<Mutex<Slot>>>>,
+    /// The origin of every `Slot::last_used`.
+    epoch: Instant,
+    envs: Mutex<HashMap<EnvId, Arc<Slot>>>,
     /// How many envs each party holds (kept with `envs`, under its lock, so a create
     /// checks the party's limit without visiting every env).
     shares: Mutex<Shares>,
@@ -83,6 +98,7 @@ impl Registry {
             server_id,
             scenarios,
             limits,
+            epoch: Instant::now(),
             envs: Mutex::new(HashMap::new()),
             shares: Mutex::new(Shares::default()),
             tokens: Mutex::new(HashMap::new()),
@@ -146,13 +162,13 @@ impl Registry {
     /// whatever it left, as a step that panicked would.
     pub fn decide_ahead(&self, ahead: Ahead) {
         let answering = || self.singles.load(Ordering::SeqCst) > 0;
-        let mut slot = match ahead.0.try_lock() {
+        let mut work = match ahead.0.work.try_lock() {
             _ if answering() => return,
-            Ok(slot) => slot,
+            Ok(work) => work,
             Err(TryLockError::Poisoned(poisoned)) => poisoned.into_inner(),
             Err(TryLockError::WouldBlock) => return,
         };
-        let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| slot.env.decide_ahead(&answering)));
+        let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| work.env.decide_ahead(&answering)));
     }
 
     fn answer(&self, user: Option<&str>, bytes: &[u8], ahead: &mut Option<Ahead>) -> Result<ReplyBody, ErrorReply> {
@@ -198,19 +214,19 @@ impl Registry {
                 Ok(ReplyBody::StepBatch(self.step_batch(client, &steps)))
             }
             RequestBody::Render { env, mode, follow } => {
-                self.with_env(client, env, |slot| slot.env.render(mode, follow.as_deref()).map(ReplyBody::Render))
+                self.with_env(client, env, |work| work.env.render(mode, follow.as_deref()).map(ReplyBody::Render))
             }
             RequestBody::Statistics { env } => {
-                self.with_env(client, env, |slot| Ok(ReplyBody::Statistics(slot.env.statistics())))
+                self.with_env(client, env, |work| Ok(ReplyBody::Statistics(work.env.statistics())))
             }
-            RequestBody::State { env } => self.with_env(client, env, |slot| slot.env.state().map(ReplyBody::State)),
-            RequestBody::Specs { env } => self.with_env(client, env, |slot| Ok(ReplyBody::Specs(slot.env.specs()))),
+            RequestBody::State { env } => self.with_env(client, env, |work| work.env.state().map(ReplyBody::State)),
+            RequestBody::Specs { env } => self.with_env(client, env, |work| Ok(ReplyBody::Specs(work.env.specs()))),
             RequestBody::Close { env } => self.close(client, env),
-            RequestBody::Record { env, on } => self.with_env(client, env, |slot| {
-                slot.env.set_recording(on).map(|start| ReplyBody::Recording(start.map(Box::new)))
+            RequestBody::Record { env, on } => self.with_env(client, env, |work| {
+                work.env.set_recording(on).map(|start| ReplyBody::Recording(start.map(Box::new)))
             }),
             RequestBody::Snapshot { env } => {
-                self.with_env(client, env, |slot| slot.env.snapshot().map(ReplyBody::Snapshot))
+                self.with_env(client, env, |work| work.env.snapshot().map(ReplyBody::Snapshot))
             }
             RequestBody::Restore { env, seq, snapshot } => self.sequenced(client, env, seq, |env| {
                 let agents = env.restore(&snapshot)?;
@@ -289,15 +305,14 @@ impl Registry {
         lock(&self.shares).take(&party);
         let now = Instant::now();
         let slot = Slot {
-            env,
             owner,
             owner_tag: owner.tag(),
             party,
             created: now,
-            replies: ReplyCache::default(),
-            last_used: now,
+            last_used: AtomicU64::new(self.since_epoch(now)),
+            work: Mutex::new(Work { env, replies: ReplyCache::default() }),
         };
-        envs.insert(id, Arc::new(Mutex::new(slot)));
+        envs.insert(id, Arc::new(slot));
         Ok(ReplyBody::Created { env: id, specs })
     }
 
@@ -328,11 +343,16 @@ impl Registry {
         lock(&self.shares).release(party);
     }
 
-    fn slot(&self, client: ClientId, env: EnvId) -> Result<Arc<Mutex<Slot>>, ErrorReply> {
+    /// `now` as a `Slot::last_used`.
+    fn since_epoch(&self, now: Instant) -> u64 {
+        now.saturating_duration_since(self.epoch).as_nanos().min(u128::from(u64::MAX)) as u64
+    }
+
+    fn slot(&self, client: ClientId, env: EnvId) -> Result<Arc<Slot>, ErrorReply> {
         let found = lock(&self.envs).get(&env).cloned();
         match found {
             // Another client's env looks exactly like one that does not exist.
-            Some(slot) if lock(&slot).owner == client => Ok(slot),
+            Some(slot) if slot.owner == client => Ok(slot),
             // Only its owner learns that a closed env existed; to anyone else it is unknown.
             None if lock(&self.closed).closed_for(&env, client) => {
                 Err(error(ErrorCode::EnvClosed, format!("env {env} was closed; create a new one"), false))
@@ -347,14 +367,15 @@ impl Registry {
         &self,
         client: ClientId,
         env: EnvId,
-        f: impl FnOnce(&mut Slot) -> Result<ReplyBody, ErrorReply>,
+        f: impl FnOnce(&mut Work) -> Result<ReplyBody, ErrorReply>,
     ) -> Result<ReplyBody, ErrorReply> {
         let slot = self.slot(client, env)?;
+        slot.last_used.store(self.since_epoch(Instant::now()), Ordering::Relaxed);
         let outcome = {
-            let mut slot = lock(&slot);
-            slot.last_used = Instant::now();
-            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(&mut slot)))
+            let mut work = lock(&slot.work);
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(&mut work)))
         };
+        slot.last_used.store(self.since_epoch(Instant::now()), Ordering::Relaxed);
         outcome.unwrap_or_else(|_| {
             let _ = self.close(client, env);
             let message = "this env panicked while answering (a server bug); it was closed: create a new one";
@@ -371,8 +392,8 @@ impl Registry {
         seq: u64,
         f: impl FnOnce(&mut Env) -> Result<ReplyBody, ErrorReply>,
     ) -> Result<ReplyBody, ErrorReply> {
-        self.with_env(client, env, |slot| {
-            let Slot { env, replies, .. } = slot;
+        self.with_env(client, env, |work| {
+            let Work { env, replies } = work;
             replies.once(seq, || f(env))
         })
     }
@@ -380,17 +401,52 @@ impl Registry {
     fn close(&self, client: ClientId, env: EnvId) -> Result<ReplyBody, ErrorReply> {
         self.slot(client, env)?;
         let mut envs = lock(&self.envs);
-        if let Some(slot) = envs.remove(&env) {
-            self.release(&lock(&slot).party);
+        let removed = envs.remove(&env);
+        if let Some(slot) = &removed {
+            self.release(&slot.party);
         }
         drop(envs);
         lock(&self.closed).insert(env, client);
+        // A request still working on it holds it; the last one out drops it, off these locks.
+        drop(removed);
         Ok(ReplyBody::Closed)
     }
 
     /// Notes that the client whose public tag is `client` has a live liveliness token.
+    /// Tokens cost nothing to declare, so past `MAX_CLIENT_TAGS` the tags that own no
+    /// env are forgotten: an owner whose tag was forgotten is looked up again
+    /// (`unseen_owners`) before its envs could be taken for orphans.
     pub fn client_arrived(&self, client: ClientTag) {
-        lock(&self.tokens).insert(client, None);
+        let mut tokens = lock(&self.tokens);
+        tokens.insert(client, None);
+        if tokens.len() > MAX_CLIENT_TAGS {
+            let owners: std::collections::HashSet<ClientTag> =
+                lock(&self.envs).values().map(|slot| slot.owner_tag).collect();
+            tokens.retain(|tag, _| owners.contains(tag));
+        }
+    }
+
+    /// How many client tags the registry remembers now (at most `MAX_CLIENT_TAGS` beyond
+    /// the owners of envs).
+    pub fn client_tags(&self) -> usize {
+        lock(&self.tokens).len()
+    }
+
+    /// The owners of envs, created at least `ORPHAN_GRACE` before `now`, of whom no token
+    /// was seen: before `reclaim_orphans` takes their envs, ask whether they are there
+    /// (their arrival may have been forgotten under a flood of tokens).
+    pub fn unseen_owners(&self, now: Instant) -> Vec<ClientTag> {
+        let tokens = lock(&self.tokens);
+        let envs = lock(&self.envs);
+        let mut unseen: Vec<ClientTag> = envs
+            .values()
+            .filter(|slot| now.saturating_duration_since(slot.created) >= ORPHAN_GRACE)
+            .map(|slot| slot.owner_tag)
+            .filter(|tag| !tokens.contains_key(tag))
+            .collect();
+        unseen.sort_unstable();
+        unseen.dedup();
+        unseen
     }
 
     /// Notes that the token of the client whose public tag is `client` went at `now`.
@@ -424,23 +480,27 @@ impl Registry {
     /// Closes envs idle for longer than the limit; returns how many.
     pub fn reclaim_idle(&self, now: Instant) -> usize {
         let timeout = self.limits.idle_timeout;
-        self.retain(|slot| now.saturating_duration_since(slot.last_used) < timeout)
+        let now = self.since_epoch(now);
+        self.retain(|slot| Duration::from_nanos(now.saturating_sub(slot.last_used.load(Ordering::Relaxed))) < timeout)
     }
 
+    /// Closes the envs `keep` refuses; never waits for an env's own lock, so an env busy
+    /// with a long request delays no other client's.
     fn retain(&self, keep: impl Fn(&Slot) -> bool) -> usize {
+        let mut gone = Vec::new();
         let mut envs = lock(&self.envs);
-        let before = envs.len();
         let mut closed = lock(&self.closed);
         envs.retain(|id, slot| {
-            let slot = lock(slot);
-            let kept = keep(&slot);
+            let kept = keep(slot);
             if !kept {
                 closed.insert(*id, slot.owner);
                 self.release(&slot.party);
+                gone.push(Arc::clone(slot));
             }
             kept
         });
-        before - envs.len()
+        drop((closed, envs));
+        gone.len()
     }
 }
 

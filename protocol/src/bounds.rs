@@ -103,11 +103,17 @@ fn create(scenario: &ScenarioSource, create: &CreateOptions) -> Result<(), Bound
     options("override", &create.overrides)
 }
 
+/// Checks reset overrides that did not come in a request (a snapshot carries its
+/// episode's) against the bounds a reset's own are held to.
+pub fn check_reset_overrides(overrides: &[(String, OptionValue)]) -> Result<(), BoundError> {
+    options("reset override", overrides)
+}
+
 /// Checks every string and list of `request` against its bound.
 pub fn check(request: &Request) -> Result<(), BoundError> {
     match &request.body {
         RequestBody::CreateEnv { scenario, options } => create(scenario, options),
-        RequestBody::Reset { options: reset, .. } => options("reset override", &reset.overrides),
+        RequestBody::Reset { options: reset, .. } => check_reset_overrides(&reset.overrides),
         RequestBody::Step { actions: step, .. } => actions(step),
         RequestBody::StepBatch { steps } => steps.iter().try_for_each(|step| actions(&step.actions)),
         RequestBody::Restore { snapshot, .. } => {

@@ -53,27 +53,34 @@ pub struct Figures {
     pub max_jerk: f64,
 }
 
+/// The most control periods an env's episodes may hold for all its learners together
+/// (max_cycles x periods per step x learners): each period keeps one commanded jerk per
+/// learner (8 bytes) for the episode's percentile, so this bounds that memory at 16 MiB
+/// an env. One learner may drive 2^21 periods (58 simulated hours at 0.1 s), 1 024
+/// learners 2 048 periods each.
+pub const MAX_AGENT_PERIODS: usize = 1 << 21;
+
 /// The running figures of one agent's episode.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EpisodeStats {
-    steps: u32,
-    total_reward: f64,
-    speed_sum: f64,
-    min_gap: f64,
-    min_ttc: f64,
-    cost_squares: CostComponents,
-    cost_samples: u32,
+    pub(super) steps: u32,
+    pub(super) total_reward: f64,
+    pub(super) speed_sum: f64,
+    pub(super) min_gap: f64,
+    pub(super) min_ttc: f64,
+    pub(super) cost_squares: CostComponents,
+    pub(super) cost_samples: u32,
     /// Offset and lane the episode started with, to see the first lane crossing.
-    start_d: f64,
-    start_lane: LaneId,
+    pub(super) start_d: f64,
+    pub(super) start_lane: LaneId,
     /// Start of the current run of steps with a lane change under way.
-    changing_since: Option<f64>,
+    pub(super) changing_since: Option<f64>,
     /// Set once the vehicle has crossed half a lane from where it started.
-    t_c: Option<f64>,
-    crossed: bool,
+    pub(super) t_c: Option<f64>,
+    pub(super) crossed: bool,
     /// The acceleration commanded in the last control period, and every commanded jerk.
-    last_accel: Option<f64>,
-    jerks: Vec<f64>,
+    pub(super) last_accel: Option<f64>,
+    pub(super) jerks: Vec<f64>,
 }
 
 impl EpisodeStats {
@@ -97,6 +104,39 @@ impl EpisodeStats {
             last_accel: None,
             jerks: Vec::with_capacity(periods),
         }
+    }
+
+    /// Whether these figures, read from outside (a snapshot), could be an episode's of at
+    /// most `steps` steps and `periods` control periods on a road of `lanes` lanes: every
+    /// sum finite, gaps and times to collision not NaN and not negative, no more jerks than
+    /// periods.
+    pub fn check(&self, steps: u32, periods: usize, lanes: usize) -> Result<(), String> {
+        let c = &self.cost_squares;
+        let sums = [self.total_reward, self.speed_sum, c.safety, c.comfort, c.efficiency, self.start_d];
+        let times = [self.changing_since, self.t_c, self.last_accel];
+        if !sums.into_iter().chain(times.into_iter().flatten()).all(f64::is_finite) {
+            return Err("a sum or time of its episode that is not finite".into());
+        }
+        if !([self.min_gap, self.min_ttc].into_iter().all(|least| least >= 0.0)) {
+            return Err(format!("a least gap {} or time to collision {} below 0", self.min_gap, self.min_ttc));
+        }
+        if [c.safety, c.comfort, c.efficiency].into_iter().any(|square| square < 0.0) {
+            return Err("a negative sum of squared costs".into());
+        }
+        if self.steps > steps || self.jerks.len() > periods {
+            return Err(format!(
+                "{} steps and {} jerks, where the episode has had {steps} steps of at most {periods} periods",
+                self.steps,
+                self.jerks.len()
+            ));
+        }
+        if !self.jerks.iter().all(|jerk| jerk.is_finite() && *jerk >= 0.0) {
+            return Err("a jerk that is not a finite size".into());
+        }
+        if self.start_lane.0 as usize >= lanes {
+            return Err(format!("a start lane the road (lanes 0..{lanes}) does not have"));
+        }
+        Ok(())
     }
 
     /// Adds one env step that began at simulated time `started` and left `world` as it is.

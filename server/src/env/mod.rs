@@ -117,6 +117,10 @@ struct StepScratch {
     started: f64,
 }
 
+// A step carries one action per learner: the scenario's bound on learners is the
+// protocol's on a step's actions.
+const _: () = assert!(arena_sim::MAX_LEARNERS == arena_protocol::bounds::MAX_ACTIONS);
+
 /// The largest RGB frame (bytes) a render reply carries: the message limit less room for
 /// the envelope.
 const MAX_FRAME_BYTES: usize = arena_protocol::MAX_MESSAGE_BYTES - 64 * 1024;
@@ -143,6 +147,11 @@ impl Env {
         if max_cycles == 0 {
             return Err(error(ErrorCode::InvalidScenario, "max_cycles must be at least 1"));
         }
+        let mut driven = scenario.clone();
+        if let Some(policy) = options.policy {
+            drive_learners(&mut driven, policy);
+        }
+        episode_fits(&driven, max_cycles, options.expert.is_some())?;
         if let (Some(expert), Some(policy @ BuiltinPolicy::Gt { game: driving, .. })) = (options.expert, options.policy)
             && expert != driving
         {
@@ -274,9 +283,11 @@ impl Env {
         if let Some(policy) = self.policy {
             drive_learners(&mut episode, policy);
         }
+        episode_fits(&episode, self.max_cycles, self.expert.is_some())
+            .map_err(|e| error(e.code, format!("reset: {}", e.message)))?;
         let mut world = episode.build(world_seed);
         if self.recording {
-            recording::check_fits(world.vehicles().len(), frames_per_step(&episode, &world))?;
+            recording::check_fits(world.vehicles().len(), frames_per_step(&episode))?;
             self.recorder.restart(&world);
         }
         self.prepare(&mut world, &episode)?;
@@ -284,7 +295,7 @@ impl Env {
         self.episode = episode;
         self.cycles = 0;
         self.reset_inputs = (world_seed, options.overrides.clone());
-        let periods = self.control_periods(&world);
+        let periods = self.control_periods();
         for agent in &mut self.agents {
             agent.live = true;
             agent.vehicle = world.find(&agent.name).unwrap_or(agent.vehicle);
@@ -310,7 +321,7 @@ impl Env {
     /// decisions, and the decision clock when the server drives the learners.
     fn prepare(&self, world: &mut World, episode: &Scenario) -> Result<(), ErrorReply> {
         if self.explain {
-            explain::check_fits(world, frames_per_step(episode, world) - 1)?;
+            explain::check_fits(world, frames_per_step(episode) - 1)?;
             world.set_explain(true);
         }
         world.clock_decisions(self.policy.is_some());
@@ -437,7 +448,7 @@ impl Env {
     /// not fit a reply is refused, and recording stays as it was.
     pub fn set_recording(&mut self, on: bool) -> Result<Option<WorldStart>, ErrorReply> {
         if on && let Some(world) = &self.world {
-            recording::check_fits(world.vehicles().len(), frames_per_step(&self.episode, world))?;
+            recording::check_fits(world.vehicles().len(), frames_per_step(&self.episode))?;
             if !self.recording {
                 self.recorder.restart(world);
             }
@@ -448,9 +459,8 @@ impl Env {
     }
 
     /// The most control periods an episode can have: `max_cycles` steps of `step_dt`.
-    fn control_periods(&self, world: &World) -> usize {
-        let per_step = (self.episode.step_dt / world.params().control_dt).ceil() as usize;
-        self.max_cycles as usize * per_step
+    fn control_periods(&self) -> usize {
+        self.max_cycles as usize * self.episode.control_periods_per_step()
     }
 
     /// Advances the world by one env step, sampling the live agents' costs.
@@ -494,7 +504,7 @@ impl Env {
         let i = self.scratch.live_before[k];
         let cost = self.scratch.costs[k];
         let truncated = self.cycles >= self.max_cycles;
-        let periods = self.control_periods(world);
+        let periods = self.control_periods();
         let agent = &mut self.agents[i];
         let vehicle = world.vehicle(agent.vehicle);
         let crashed_now = self.scratch.driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
@@ -575,6 +585,44 @@ impl Env {
     }
 }
 
+/// Whether `max_cycles` steps of `episode` (its learners already handed to the env's
+/// policy, if any) keep within what an env may cost, checked before anything is made in
+/// proportion to them: `episode::MAX_AGENT_PERIODS`, and the scenario's bounds on
+/// game-theoretic cars and decisions counting an expert's decision per learner and step.
+fn episode_fits(episode: &Scenario, max_cycles: u32, expert: bool) -> Result<(), ErrorReply> {
+    let refuse = |message: String| Err(error(ErrorCode::InvalidScenario, message));
+    let per_step = episode.control_periods_per_step();
+    let learners = episode.agents().count();
+    let periods = f64::from(max_cycles) * (per_step * learners) as f64;
+    if periods > episode::MAX_AGENT_PERIODS as f64 {
+        return refuse(format!(
+            "max_cycles {max_cycles} x {per_step} control periods per step x {learners} learner(s) is {periods} \
+             periods an episode, more than the {} an env may hold (docs/protocol.md, \"Bounds\"): ask for fewer \
+             steps, a shorter sim.step_dt or fewer learners",
+            episode::MAX_AGENT_PERIODS
+        ));
+    }
+    let gt_cars = episode.gt_cars();
+    if gt_cars > arena_sim::MAX_GT_CARS {
+        return refuse(format!(
+            "{gt_cars} game-theoretic cars (the policy drives {learners} learner(s) as one), more than the {}: \
+             fewer learners, or another policy",
+            arena_sim::MAX_GT_CARS
+        ));
+    }
+    let experts = if expert { learners } else { 0 };
+    let decisions = episode.gt_decisions_per_step() + experts;
+    if decisions > arena_sim::MAX_GT_DECISIONS_PER_STEP {
+        return refuse(format!(
+            "{decisions} game-theoretic decisions a step ({gt_cars} car(s) x {per_step} period(s), and {experts} \
+             expert decision(s) for the learners), more than the {}: fewer game-theoretic cars or learners, a \
+             shorter sim.step_dt, or no expert",
+            arena_sim::MAX_GT_DECISIONS_PER_STEP
+        ));
+    }
+    Ok(())
+}
+
 /// The refusal of a render that follows a vehicle the world does not have.
 fn unknown_vehicle(world: &World, name: &str) -> ErrorReply {
     let names: Vec<&str> = world.vehicles().iter().map(|v| v.name.as_str()).collect();
@@ -604,8 +652,8 @@ fn style_of(style: Style) -> arena_protocol::Style {
 }
 
 /// Frames a recorded step can take: one per control period, and one at its end.
-fn frames_per_step(episode: &Scenario, world: &World) -> usize {
-    (episode.step_dt / world.params().control_dt).ceil() as usize + 1
+fn frames_per_step(episode: &Scenario) -> usize {
+    episode.control_periods_per_step() + 1
 }
 
 fn style(style: arena_protocol::Style) -> Style {

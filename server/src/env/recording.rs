@@ -18,9 +18,11 @@ use super::{episode, error, style_of};
 /// Heading change (rad) between two points of an arc's polyline: 0.02, chosen here (the
 /// chord then strays R * 0.02^2 / 8 from the arc, 1.5 cm on overtake's 300 m radius).
 const ARC_STEP: f64 = 0.02;
-/// Most points of one lane line: a road of many long arcs is sampled more coarsely
-/// rather than making a reply of megabytes.
-const MAX_LINE_POINTS: usize = 20_000;
+/// Most points of all lane lines together (16 bytes each, so 4 MiB of a reply): a road
+/// of many lanes and long arcs is sampled more coarsely rather than making a reply of
+/// tens of megabytes. Section starts are always kept (at most `MAX_ROAD_SECTIONS` a line,
+/// which this budget holds for every lane count a road may have).
+const MAX_ROAD_POINTS: usize = 1 << 18;
 /// The bytes a recording may add to one reply (the rest of the message limit carries the
 /// agents' rows): a `VehicleFrame` encodes to at most 67 bytes, a collision to 36.
 const MAX_RECORDING_BYTES: usize = arena_protocol::MAX_MESSAGE_BYTES / 2;
@@ -153,7 +155,7 @@ fn frame(world: &World, collisions: Vec<CollisionEvent>) -> WorldFrame {
 
 /// The road's lanes as polylines in world coordinates.
 pub fn road(road: &Road) -> RoadGeometry {
-    let stations = stations(road);
+    let stations = stations(road, MAX_ROAD_POINTS / (3 * road.lane_count()));
     let half = road.lane_width() / 2.0;
     let lanes = (0..road.lane_count())
         .map(|lane| {
@@ -185,12 +187,12 @@ pub fn road(road: &Road) -> RoadGeometry {
 }
 
 /// Where along the reference line lane lines are sampled: each section's start, and on
-/// arcs every `ARC_STEP` of heading (fewer if a line would pass `MAX_LINE_POINTS`); the
+/// arcs every `ARC_STEP` of heading (fewer if a line would pass `line_points`); the
 /// road's end is added by each lane.
-fn stations(road: &Road) -> Vec<f64> {
+fn stations(road: &Road, line_points: usize) -> Vec<f64> {
     let sections = road_sections(road);
     let wanted: usize = sections.iter().map(|&(_, section)| arc_points(section)).sum();
-    let thin = wanted.div_ceil(MAX_LINE_POINTS).max(1);
+    let thin = wanted.div_ceil(line_points.max(1)).max(1);
     let mut stations = Vec::new();
     for (start, section) in sections {
         let points = (arc_points(section) / thin).max(1);
@@ -202,7 +204,7 @@ fn stations(road: &Road) -> Vec<f64> {
 /// Points an arc's line wants (one for a straight: its start).
 fn arc_points(section: Section) -> usize {
     let turn = (section.curvature() * section.length()).abs();
-    ((turn / ARC_STEP).ceil() as usize).clamp(1, MAX_LINE_POINTS)
+    ((turn / ARC_STEP).ceil() as usize).clamp(1, MAX_ROAD_POINTS)
 }
 
 /// Each section with where it starts along the reference line.

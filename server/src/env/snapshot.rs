@@ -17,7 +17,7 @@
 //! before it is read, so it does not change results.
 
 use arena_protocol::{AgentStart, ErrorCode, ErrorReply, OptionValue, PROTOCOL_VERSION};
-use arena_sim::{GtDriver, RngState, VehicleId, WorldState};
+use arena_sim::{GtDriver, RngState, Role, VehicleId, World, WorldState};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
@@ -153,6 +153,14 @@ impl Env {
     pub fn restore(&mut self, bytes: &[u8]) -> Result<Vec<AgentStart>, ErrorReply> {
         let body = self.read(bytes)?;
         let Body { world_seed, overrides: reset_overrides, seeds, cycles, agents: states, world: state, .. } = body;
+        arena_protocol::bounds::check_reset_overrides(&reset_overrides)
+            .map_err(|e| refused(format!("the snapshot's episode: {e}")))?;
+        if cycles > self.max_cycles {
+            return Err(refused(format!(
+                "the snapshot's episode has taken {cycles} steps, more than this env's max_cycles {}",
+                self.max_cycles
+            )));
+        }
         let mut draws = ChaCha8Rng::seed_from_u64(world_seed);
         let mut episode = self
             .scenario
@@ -175,12 +183,10 @@ impl Env {
                     state.name, state.vehicle, agent.name
                 )));
             }
-            if state.expert.is_some() != self.expert.is_some() {
-                return Err(refused(format!(
-                    "agent '{}': an expert's memory where the env has none, or none",
-                    agent.name
-                )));
-            }
+            let like =
+                self.expert.map(|game| GtDriver::new(game, Role::Leader, world.gt_params(VehicleId(state.vehicle))));
+            self.check_agent(&world, &episode, cycles, &state, like.as_ref())
+                .map_err(|e| refused(format!("the snapshot's agent '{}': {e}", agent.name)))?;
             agent.vehicle = VehicleId(state.vehicle);
             agent.live = state.live;
             agent.expert = state.expert.map(Box::new);
@@ -189,7 +195,7 @@ impl Env {
             agent.ladder = state.ladder;
         }
         if self.recording {
-            recording::check_fits(world.vehicles().len(), super::frames_per_step(&episode, &world))?;
+            recording::check_fits(world.vehicles().len(), super::frames_per_step(&episode))?;
         }
         self.prepare(&mut world, &episode)?;
         if self.recording {
@@ -216,6 +222,33 @@ impl Env {
             .collect();
         self.world = Some(world);
         Ok(starts)
+    }
+
+    /// Whether an agent's part of a snapshot could be one of this env after `cycles` steps
+    /// of `episode` in `world`: an expert's memory as the expert this env makes (`like`),
+    /// its episode's figures, its speeds. Nothing of it sets what a step costs.
+    fn check_agent(
+        &self,
+        world: &World,
+        episode: &arena_sim::Scenario,
+        cycles: u32,
+        state: &AgentState,
+        like: Option<&GtDriver>,
+    ) -> Result<(), String> {
+        let lanes = world.road().lane_count();
+        match (&state.expert, like) {
+            (Some(memory), Some(like)) => memory.check_memory(like, lanes).map_err(|e| format!("its expert: {e}"))?,
+            (None, None) => {}
+            _ => return Err("an expert's memory where the env has none, or none".into()),
+        }
+        let per_step = episode.control_periods_per_step();
+        if let Some(stats) = &state.stats {
+            stats.check(cycles, cycles as usize * per_step, lanes)?;
+        }
+        if ![state.aim, state.ladder].into_iter().all(|speed| speed.is_finite() && speed >= 0.0) {
+            return Err(format!("speeds {} and {} that are not finite sizes", state.aim, state.ladder));
+        }
+        Ok(())
     }
 
     /// The body of `bytes`, checked against this env's protocol version, scenario and
@@ -266,5 +299,79 @@ impl Env {
             )));
         }
         Ok(body)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use arena_protocol::{CreateOptions, ErrorCode, Game, OptionValue, ResetOptions};
+
+    use super::*;
+
+    fn stepped(options: CreateOptions) -> Env {
+        let (_, file, text) = arena_sim::BUILTIN_SCENARIOS.into_iter().find(|(n, ..)| *n == "merge").unwrap();
+        let mut env = Env::from_text(file, text, &options, 1).unwrap();
+        env.reset(Some(2), &ResetOptions::default()).unwrap();
+        for _ in 0..5 {
+            env.step(&[]).unwrap();
+        }
+        env
+    }
+
+    /// `snapshot` with its body changed by `spoil` and its checksum made again, as anyone
+    /// can: the checksum tells damage, not forgery.
+    fn forged(snapshot: &[u8], spoil: impl FnOnce(&mut Body)) -> Vec<u8> {
+        let split = snapshot.len() - CHECKSUM;
+        let mut body: Body = arena_protocol::decode(&snapshot[HEADER..split]).unwrap();
+        spoil(&mut body);
+        let mut bytes = snapshot[..HEADER].to_vec();
+        bytes.extend_from_slice(&arena_protocol::encode(&body));
+        let checksum = sha3::Sha3_256::digest(&bytes);
+        bytes.extend_from_slice(&checksum);
+        bytes
+    }
+
+    fn expert(body: &mut Body) -> &mut GtDriver {
+        body.agents[0].expert.as_mut().expect("an env with an expert")
+    }
+
+    fn stats(body: &mut Body) -> &mut episode::EpisodeStats {
+        body.agents[0].stats.as_mut().expect("figures after five steps")
+    }
+
+    #[test]
+    fn a_forged_snapshot_brings_no_constant_no_unbounded_list_and_no_number_that_is_not_finite() {
+        let mut env = stepped(CreateOptions { expert: Some(Game::Stackelberg), ..CreateOptions::default() });
+        let snapshot = env.snapshot().unwrap();
+        type Spoil = Box<dyn Fn(&mut Body)>;
+        let cases: Vec<(&str, Spoil)> = vec![
+            // The constants of a decision's cost: 2^40 prediction samples aborted the server
+            // on its first step, an acceleration step of 1e-300 never ended it.
+            ("other constants", Box::new(|b| expert(b).params.decision.prediction.samples = 1 << 40)),
+            ("other constants", Box::new(|b| expert(b).params.decision.game.accel_step = 1e-300)),
+            ("not finite", Box::new(|b| expert(b).preview = Some(f64::NAN))),
+            ("not finite", Box::new(|b| expert(b).decision.cost = f64::INFINITY)),
+            ("a plan of 100000 moves", Box::new(|b| expert(b).plan = vec![0.0; 100_000])),
+            ("not finite", Box::new(|b| stats(b).total_reward = f64::NAN)),
+            ("not finite", Box::new(|b| stats(b).speed_sum = f64::INFINITY)),
+            ("below 0", Box::new(|b| stats(b).min_gap = f64::NAN)),
+            ("jerks", Box::new(|b| stats(b).jerks = vec![1.0; 10_000])),
+            ("not a finite size", Box::new(|b| stats(b).jerks[0] = f64::NAN)),
+            ("speeds", Box::new(|b| b.agents[0].aim = f64::NAN)),
+            ("reset override list", Box::new(|b| b.overrides = vec![("k".into(), OptionValue::Bool(true)); 200_000])),
+            ("reset override key", Box::new(|b| b.overrides = vec![("k".repeat(1 << 20), OptionValue::Int(1))])),
+            ("max_cycles", Box::new(|b| b.cycles = u32::MAX)),
+        ];
+        for (needle, spoil) in cases {
+            let bytes = forged(&snapshot, spoil);
+            let error = env.restore(&bytes).unwrap_err();
+            assert_eq!(error.code, ErrorCode::InvalidSnapshot, "{needle}: {error}");
+            assert!(error.message.contains(needle), "'{needle}' not in: {}", error.message);
+            assert!(env.snapshot().unwrap() == snapshot, "{needle}: a refused restore changed the env");
+        }
+        // Forged but true to the env: taken.
+        let same = forged(&snapshot, |_| {});
+        assert!(env.restore(&same).is_ok());
+        assert!(env.step(&[]).is_ok());
     }
 }

@@ -1021,13 +1021,13 @@ fn a_recording_that_would_not_fit_a_reply_is_refused() {
     assert!(refused.message.contains("10000 vehicles x 11 frames"), "{}", refused.message);
     assert!(refused.env_usable);
     // A reset that would record too much leaves the env as it was: a highway of 2 000
-    // cars deciding once a minute (601 frames a step) is refused, and the last episode
+    // cars stepped 10 s at a time (101 frames a step) is refused, and the last episode
     // goes on.
     let mut env = env("highway", CreateOptions { record: true, ..CreateOptions::default() });
     env.reset(Some(1), NO_OPTIONS).unwrap();
     env.step(&[]).unwrap();
     let time = env.world().unwrap().time();
-    let huge = overriding(&[("traffic.count", OptionValue::Int(2000)), ("sim.step_dt", OptionValue::Float(60.0))]);
+    let huge = overriding(&[("traffic.count", OptionValue::Int(2000)), ("sim.step_dt", OptionValue::Float(10.0))]);
     let error = env.reset(Some(2), &huge).unwrap_err();
     assert!(error.message.contains("record:"), "{}", error.message);
     assert_eq!(env.world().unwrap().time(), time);

@@ -247,6 +247,38 @@ impl GtDriver {
             diagnostics: Diagnostics::default(),
         }
     }
+
+    /// Every number it carries from one decision to the next.
+    pub fn memory_numbers(&self) -> impl Iterator<Item = f64> + '_ {
+        let d = &self.decision;
+        let memory = [self.preview, self.pace, self.crossing_at, d.response, d.duration, d.crossing];
+        let decided = [d.accel, d.cost, d.predicted.safety, d.predicted.comfort, d.predicted.efficiency];
+        memory.into_iter().flatten().chain(decided).chain(self.plan.iter().copied())
+    }
+
+    /// Whether this memory, read from outside (a snapshot), could be one `like` (the
+    /// driver its scenario gives the car) came to: the same game, role and constants, every
+    /// number finite, a plan no longer than the MPC's, lanes the road (`lanes` wide) has.
+    /// The constants are never taken from outside: they set how much a decision costs.
+    pub fn check_memory(&self, like: &GtDriver, lanes: usize) -> Result<(), String> {
+        if (self.game, self.role) != (like.game, like.role) || self.params != like.params {
+            return Err("another driver, or the same with other constants".into());
+        }
+        if !self.memory_numbers().all(f64::is_finite) {
+            return Err("a number that is not finite in its driver's memory".into());
+        }
+        if self.plan.len() > self.params.mpc.control_horizon.max(1) {
+            return Err(format!(
+                "a plan of {} moves, where its MPC plans {}",
+                self.plan.len(),
+                self.params.mpc.control_horizon
+            ));
+        }
+        if self.counterfactual_target.is_some_and(|lane| lane.0 as usize >= lanes) {
+            return Err(format!("a lane the road (lanes 0..{lanes}) does not have"));
+        }
+        Ok(())
+    }
 }
 
 /// One control period's output of a `gt` driver, before the world applies it.

@@ -135,18 +135,12 @@ impl World {
                 )));
             }
             let same_driver = match (&ours.driver, &theirs.driver) {
-                (Driver::Agent(_), Driver::Agent(_)) | (Driver::Idm, Driver::Idm) => true,
-                (Driver::Gt(a), Driver::Gt(b)) => a.game == b.game && a.role == b.role && a.params == b.params,
-                _ => false,
+                (Driver::Agent(_), Driver::Agent(_)) | (Driver::Idm, Driver::Idm) => Ok(()),
+                (Driver::Gt(ours), Driver::Gt(theirs)) => theirs.check_memory(ours, lanes),
+                _ => Err("another driver".to_string()),
             };
-            if !same_driver {
-                return Err(invalid(format!("{}: another driver, or the same with other constants", at())));
-            }
-            let counterfactual = match &theirs.driver {
-                Driver::Gt(gt) => gt.counterfactual_target,
-                _ => None,
-            };
-            let lanes_used = [Some(theirs.target_lane), Some(theirs.lane_entry.lane), counterfactual];
+            same_driver.map_err(|e| invalid(format!("{}: {e}", at())))?;
+            let lanes_used = [Some(theirs.target_lane), Some(theirs.lane_entry.lane)];
             if !lanes_used.into_iter().flatten().all(lane_ok) {
                 return Err(invalid(format!("{}: a lane the road (lanes 0..{lanes}) does not have", at())));
             }
@@ -211,15 +205,10 @@ fn vehicle_numbers(vehicle: &Vehicle) -> impl Iterator<Item = f64> + '_ {
         path.start,
         path.duration,
     ];
+    // A gt driver's memory is checked by `GtDriver::check_memory`.
     let driver: Vec<f64> = match &vehicle.driver {
-        Driver::Gt(gt) => {
-            let d = &gt.decision;
-            let memory = [gt.preview, gt.pace, gt.crossing_at, d.response, d.duration, d.crossing];
-            let decided = [d.accel, d.cost, d.predicted.safety, d.predicted.comfort, d.predicted.efficiency];
-            memory.into_iter().flatten().chain(decided).chain(gt.plan.iter().copied()).collect()
-        }
         Driver::Agent(AgentCommand::Direct(command)) => vec![command.accel, command.preview],
-        Driver::Agent(AgentCommand::Track) | Driver::Idm => Vec::new(),
+        Driver::Agent(AgentCommand::Track) | Driver::Idm | Driver::Gt(_) => Vec::new(),
     };
     let lane_entry = vehicle.lane_entry.at;
     vehicle.state.to_array().into_iter().chain(own).chain(vehicle.ramp_from).chain(lane_entry).chain(driver)
@@ -255,6 +244,14 @@ mod tests {
         }
     }
 
+    fn first_gt(state: &mut WorldState) -> &mut crate::GtDriver {
+        let gt = state.vehicles.iter_mut().find_map(|v| match &mut v.driver {
+            Driver::Gt(gt) => Some(gt),
+            _ => None,
+        });
+        gt.expect("merge-random has a gt car")
+    }
+
     #[test]
     fn a_state_that_does_not_fit_is_refused_and_the_world_left_as_it_was() {
         let world = advanced("merge-random", 1.0);
@@ -285,6 +282,9 @@ mod tests {
                     gt.expect("merge-random has a gt car").plan = vec![0.0, f64::NEG_INFINITY];
                 }),
             ),
+            ("a plan of 11 moves", Box::new(|s| first_gt(s).plan = vec![0.0; 11])),
+            ("other constants", Box::new(|s| first_gt(s).params.decision.game.accel_step = 1e-300)),
+            ("other constants", Box::new(|s| first_gt(s).params.decision.prediction.samples = 1 << 40)),
             ("scene car 1: a number", Box::new(|s| s.scene_cars[1].state.vx = f64::INFINITY)),
             ("scene car 1", Box::new(|s| s.scene_cars[1].lane = LaneId(40))),
             ("sorted order", Box::new(|s| s.order[0] = s.order[1])),

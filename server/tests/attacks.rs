@@ -155,6 +155,18 @@ fn roads_of_many_sections_are_bounded_and_render_and_record_within_a_reply() {
     assert!(bytes <= MAX_MESSAGE_BYTES / 2, "a reset reply of {bytes} bytes");
     let (body, _) = ask(&registry, RequestBody::Render { env, mode: RenderMode::RgbArray, follow: None });
     assert!(matches!(body, ReplyBody::Render(_)), "{body:?}");
+    // A road that lies over itself at every point: 1024 full circles of one ring. Each
+    // pixel's paint looks at a bounded number of its sections.
+    let ring = format!("{{ length = {}, radius = 40.0 }}", 2.0 * std::f64::consts::PI * 40.0);
+    let rings = road_of(limit, 2, false).replacen(&format!("{{ length = {} }}", 50_000.0 / limit as f64), &ring, limit);
+    assert_eq!(rings.matches("radius = 40.0").count(), limit);
+    let options = CreateOptions { render_size: Some((512, 512)), ..CreateOptions::default() };
+    let env = create(&registry, inline(rings), options).expect("a ring road at the section bound");
+    let reset = RequestBody::Reset { env, seq: 1, seed: Some(1), options: ResetOptions::default() };
+    assert!(matches!(ask(&registry, reset).0, ReplyBody::Reset(_)));
+    let (body, _) = ask(&registry, RequestBody::Render { env, mode: RenderMode::RgbArray, follow: None });
+    let ReplyBody::Render(arena_protocol::Frame::Rgb { pixels, .. }) = body else { panic!("{body:?}") };
+    assert!(pixels.chunks(3).any(|pixel| pixel != &pixels[..3]), "the ring is drawn");
     still_serves(&registry);
 }
 

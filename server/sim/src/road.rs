@@ -305,6 +305,17 @@ impl Road {
         nearest.unwrap_or((0.0, 0.0))
     }
 
+    /// `to_frenet` for a point at most `within` metres from the reference line, `None` for
+    /// one farther; after `budget` sections and boxes looked at, the nearest found by then.
+    /// A renderer's query: its cost per point is bounded whatever the road, and on a road
+    /// that does not cross itself more than `budget` times it is `to_frenet`'s answer.
+    pub fn to_frenet_within(&self, x: f64, y: f64, within: f64, budget: usize) -> Option<(f64, f64)> {
+        if !(x.is_finite() && y.is_finite()) {
+            return None;
+        }
+        self.index.nearest_within(x, y, within, budget, |i| foot(self.sections[i], self.starts[i], x, y))
+    }
+
     /// `to_frenet` as it was before the index: every section measured, the first nearest kept.
     #[cfg(test)]
     fn to_frenet_scan(&self, x: f64, y: f64) -> (f64, f64) {
@@ -484,6 +495,31 @@ mod tests {
 
     fn bits((s, d): (f64, f64)) -> (u64, u64) {
         (s.to_bits(), d.to_bits())
+    }
+
+    #[test]
+    fn frenet_within_a_reach_is_the_scan_or_says_farther() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for case in 0..100 {
+            let count = (10f64.powf(rng.random_range(0.0..3.0)) as usize).max(1);
+            let road = random_road(&mut rng, count);
+            let reach = rng.random_range(1.0..60.0);
+            for (x, y) in query_points(&mut rng, &road) {
+                let (s, d) = road.to_frenet_scan(x, y);
+                let foot = road.to_global(s, 0.0, 0.0);
+                let distance = (foot.x - x).hypot(foot.y - y);
+                match road.to_frenet_within(x, y, reach, usize::MAX) {
+                    Some(found) => assert_eq!(bits(found), bits((s, d)), "case {case}, ({x}, {y})"),
+                    // Farther than the reach, or at a point no finite distance from the road.
+                    None => assert!(!(distance <= reach * (1.0 - 1e-9)), "case {case}, ({x}, {y}): {distance} m"),
+                }
+            }
+            // A budget of one box finds nothing below the root of a road of many sections.
+            if count > 8 {
+                let start = road.to_global(1.0, 0.0, 0.0);
+                assert_eq!(road.to_frenet_within(start.x, start.y, reach, 1), None, "case {case}");
+            }
+        }
     }
 
     #[test]

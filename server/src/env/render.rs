@@ -19,6 +19,11 @@ const RGB_WINDOW: f64 = 120.0;
 const TEXT_HEIGHT_PER_SIZE: u32 = 150;
 /// Length of the lane-end marker (m), painted just before the end across the ending lane.
 const LANE_END_MARKER: f64 = 1.5;
+/// The most boxes and sections of the road one pixel's paint looks at: far more than a
+/// road that does not lie over itself needs (a few dozen), so a picture costs at most this
+/// per pixel whatever road a client sends (one that passes a point this often is drawn
+/// from the passes looked at).
+const SECTIONS_PER_PIXEL: usize = 256;
 /// Width of the followed car's outline (m).
 const OUTLINE: f64 = 0.35;
 /// Metres of road per character in `ansi`, and characters each side of the focus.
@@ -138,7 +143,9 @@ pub fn rgb(world: &World, focus: Option<VehicleId>, end: Option<&str>, (height, 
 /// marker. `pixel` is a pixel's size in metres.
 fn ground(world: &World, (x, y): (f64, f64), pixel: f64) -> [u8; 3] {
     let road = world.road();
-    let (s, d) = road.to_frenet(x, y);
+    // A point twice the road's width from its reference line is grass wherever it projects.
+    let reach = 2.0 * road.lane_width() * road.lane_count() as f64 + 1.0;
+    let Some((s, d)) = road.to_frenet_within(x, y, reach, SECTIONS_PER_PIXEL) else { return GRASS };
     // The nearest point of the reference line is clamped to the road: a point before its
     // start or past its end projects onto an end exactly, and is not road.
     if s <= 0.0 || s >= road.length() || !road.contains(s, d) {

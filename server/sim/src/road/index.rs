@@ -205,19 +205,48 @@ impl SectionIndex {
     /// The value `measure` gives with the smallest finite distance from (x, y), the lowest
     /// section index among equals; `None` if no section is at a finite distance.
     /// `measure(i)` must compute a distance to a point of section `i`'s reference line.
-    pub(super) fn nearest<T>(&self, x: f64, y: f64, mut measure: impl FnMut(usize) -> (f64, T)) -> Option<T> {
-        let mut best = Best { distance: f64::INFINITY, section: usize::MAX, value: None };
-        self.visit(0, x, y, &mut measure, &mut best);
+    pub(super) fn nearest<T>(&self, x: f64, y: f64, measure: impl FnMut(usize) -> (f64, T)) -> Option<T> {
+        self.nearest_within(x, y, f64::INFINITY, usize::MAX, measure)
+    }
+
+    /// `nearest` among the sections at most `within` away, `None` if there is none, after
+    /// at most `budget` boxes and sections looked at: the best found by then (the nearest,
+    /// unless more than `budget` lie about as near, as where a road crosses itself many
+    /// times).
+    pub(super) fn nearest_within<T>(
+        &self,
+        x: f64,
+        y: f64,
+        within: f64,
+        budget: usize,
+        mut measure: impl FnMut(usize) -> (f64, T),
+    ) -> Option<T> {
+        let mut best = Best { distance: within, section: usize::MAX, value: None };
+        let mut left = budget;
+        self.visit(0, x, y, &mut measure, &mut best, &mut left);
         best.value
     }
 
-    fn visit<T>(&self, node: usize, x: f64, y: f64, measure: &mut impl FnMut(usize) -> (f64, T), best: &mut Best<T>) {
+    fn visit<T>(
+        &self,
+        node: usize,
+        x: f64,
+        y: f64,
+        measure: &mut impl FnMut(usize) -> (f64, T),
+        best: &mut Best<T>,
+        left: &mut usize,
+    ) {
+        if *left == 0 {
+            return;
+        }
+        *left -= 1;
         match self.nodes[node].kind {
             Kind::Leaf { first, end } => {
                 for section in first..end {
-                    if self.chords[section].distance_below(x, y) > best.distance {
+                    if self.chords[section].distance_below(x, y) > best.distance || *left == 0 {
                         continue;
                     }
+                    *left -= 1;
                     let (distance, value) = measure(section);
                     let nearer = distance < best.distance || (distance == best.distance && section < best.section);
                     if distance < f64::INFINITY && nearer {
@@ -235,7 +264,7 @@ impl SectionIndex {
                     if below > best.distance {
                         continue;
                     }
-                    self.visit(child, x, y, measure, best);
+                    self.visit(child, x, y, measure, best, left);
                 }
             }
         }

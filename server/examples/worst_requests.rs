@@ -164,7 +164,7 @@ enum Road {
 /// 1024 sections, 64 lanes: arcs of alternate sides, or one ring passed 1024 times.
 fn road(shape: Road) -> String {
     let section = |k: usize| match shape {
-        Road::Zigzag => format!("{{ length = 400.0, radius = {} }}", if k % 2 == 0 { 300.0 } else { -300.0 }),
+        Road::Zigzag => format!("{{ length = 400.0, radius = {} }}", if k.is_multiple_of(2) { 300.0 } else { -300.0 }),
         Road::Ring => format!("{{ length = {}, radius = 250.0 }}", 2.0 * PI * 250.0),
     };
     let sections: Vec<String> = (0..1024).map(section).collect();

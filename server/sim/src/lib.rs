@@ -31,7 +31,7 @@ pub use gt::{
     SideExplained, StyleProfile, expert_decision, explain, plan, plan_motion, stage_cost,
 };
 pub use preset::{BUILTIN_PRESETS, Preset, PresetError};
-pub use road::{LaneChange, LaneId, Pose, Road, Section};
+pub use road::{LaneChange, LaneId, NearbySections, Pose, Road, Section};
 pub use scenario::{
     ActionKind, BUILTIN_SCENARIOS, DriverSpec, EPISODE_DRAWS, Goal, GtTraffic, MAX_CONTROL_PERIODS_PER_STEP,
     MAX_GT_CARS, MAX_GT_DECISIONS_PER_STEP, MAX_LEARNERS, MAX_PHYSICS_TICKS_PER_STEP, MAX_ROAD_EXTENT,

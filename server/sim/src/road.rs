@@ -112,6 +112,10 @@ pub struct Pose {
     pub heading: f64,
 }
 
+/// The sections near a patch of a picture (`Road::nearby`), in road order.
+#[derive(Debug, Clone, Default)]
+pub struct NearbySections(Vec<u32>);
+
 /// Where a section starts, precomputed so conversions need no walk along the road.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 struct SectionStart {
@@ -305,15 +309,57 @@ impl Road {
         nearest.unwrap_or((0.0, 0.0))
     }
 
-    /// `to_frenet` for a point at most `within` metres from the reference line, `None` for
-    /// one farther; after `budget` sections and boxes looked at, the nearest found by then.
-    /// A renderer's query: its cost per point is bounded whatever the road, and on a road
-    /// that does not cross itself more than `budget` times it is `to_frenet`'s answer.
-    pub fn to_frenet_within(&self, x: f64, y: f64, within: f64, budget: usize) -> Option<(f64, f64)> {
+    /// The sections a patch of a picture needs (its points at most `radius` from (x, y)),
+    /// for `to_frenet_among` to answer each of its points that lies within `within` of the
+    /// reference line. At most `cap` sections: where more lie that near (a road passing
+    /// the patch over and over), only the one nearest its centre is kept, so a picture's
+    /// cost is bounded whatever the road; elsewhere the answers are `to_frenet`'s.
+    pub fn nearby(&self, x: f64, y: f64, radius: f64, within: f64, cap: usize) -> NearbySections {
         if !(x.is_finite() && y.is_finite()) {
-            return None;
+            return NearbySections(Vec::new());
         }
-        self.index.nearest_within(x, y, within, budget, |i| foot(self.sections[i], self.starts[i], x, y))
+        let measure = |i: usize| {
+            let distance = foot(self.sections[i], self.starts[i], x, y).0;
+            (distance, (distance, i))
+        };
+        let reach = within + radius;
+        // Any section found bounds how far a point's nearest can be; the search is cut short
+        // where the road lies over itself.
+        let centre = self.index.nearest_within(x, y, reach, cap.saturating_mul(4).saturating_add(64), measure);
+        let bound =
+            centre.map_or(reach, |(distance, i)| (self.foot_reach(i, x, y, distance) + radius).min(within) + radius);
+        let mut sections = Vec::new();
+        if !self.index.collect(x, y, bound, cap, &mut sections) {
+            sections = centre.map(|(_, i)| vec![i as u32]).unwrap_or_default();
+        }
+        NearbySections(sections)
+    }
+
+    /// A bound on section `i`'s foot distance from any point within r of (x, y), less r:
+    /// on a straight its foot distance from (x, y), `distance` (the foot is its nearest
+    /// point); on an arc the farthest of that and its two ends, since the clamped foot of
+    /// a point beyond the arc's ends may be the farther end.
+    fn foot_reach(&self, i: usize, x: f64, y: f64, distance: f64) -> f64 {
+        let section = self.sections[i];
+        if is_straight(section.curvature()) {
+            return distance;
+        }
+        let start = self.starts[i].pose;
+        let end = advance(start, section.curvature(), section.length());
+        distance.max((start.x - x).hypot(start.y - y)).max((end.x - x).hypot(end.y - y))
+    }
+
+    /// `to_frenet` of a point of the patch `nearby` was made for, if it lies within
+    /// `within` of the reference line: the first of the nearest of those sections.
+    pub fn to_frenet_among(&self, nearby: &NearbySections, x: f64, y: f64, within: f64) -> Option<(f64, f64)> {
+        let mut best: Option<(f64, (f64, f64))> = None;
+        for &i in &nearby.0 {
+            let (distance, frenet) = foot(self.sections[i as usize], self.starts[i as usize], x, y);
+            if distance <= within && best.is_none_or(|(least, _)| distance < least) {
+                best = Some((distance, frenet));
+            }
+        }
+        best.map(|(_, frenet)| frenet)
     }
 
     /// `to_frenet` as it was before the index: every section measured, the first nearest kept.
@@ -498,31 +544,40 @@ mod tests {
     }
 
     #[test]
-    fn frenet_within_a_reach_is_the_scan_or_says_farther() {
+    fn frenet_among_the_sections_near_a_patch_is_the_scan_or_says_farther() {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         for case in 0..100 {
             let count = (10f64.powf(rng.random_range(0.0..3.0)) as usize).max(1);
             let road = random_road(&mut rng, count);
-            let reach = rng.random_range(1.0..60.0);
-            for (x, y) in query_points(&mut rng, &road) {
-                let (s, d) = road.to_frenet_scan(x, y);
-                let foot = road.to_global(s, 0.0, 0.0);
-                let distance = (foot.x - x).hypot(foot.y - y);
-                match road.to_frenet_within(x, y, reach, usize::MAX) {
-                    Some(found) => assert_eq!(bits(found), bits((s, d)), "case {case}, ({x}, {y})"),
-                    // Farther than the reach, or at a point no finite distance from the road.
-                    None => assert!(
-                        distance.is_nan() || distance > reach * (1.0 - 1e-9),
-                        "case {case}, ({x}, {y}): {distance} m"
-                    ),
+            let (within, radius) = (rng.random_range(1.0..60.0), rng.random_range(0.01..5.0));
+            for (cx, cy) in query_points(&mut rng, &road) {
+                let nearby = road.nearby(cx, cy, radius, within, usize::MAX);
+                for _ in 0..4 {
+                    let (angle, r) = (rng.random_range(0.0..6.3f64), rng.random_range(0.0..radius));
+                    let (x, y) = (cx + r * angle.cos(), cy + r * angle.sin());
+                    let (s, d) = road.to_frenet_scan(x, y);
+                    let foot = road.to_global(s, 0.0, 0.0);
+                    let distance = (foot.x - x).hypot(foot.y - y);
+                    match road.to_frenet_among(&nearby, x, y, within) {
+                        Some(found) => assert_eq!(bits(found), bits((s, d)), "case {case}, ({x}, {y})"),
+                        None => {
+                            assert!(distance.is_nan() || distance > within * (1.0 - 1e-9), "case {case}: {distance}")
+                        }
+                    }
                 }
             }
-            // A budget of one box finds nothing below the root of a road of many sections.
-            if count > 8 {
-                let start = road.to_global(1.0, 0.0, 0.0);
-                assert_eq!(road.to_frenet_within(start.x, start.y, reach, 1), None, "case {case}");
-            }
         }
+    }
+
+    #[test]
+    fn a_patch_where_the_road_lies_over_itself_keeps_one_section() {
+        // One ring passed 50 times: every section is as near as every other.
+        let ring = Section::Arc { length: 2.0 * std::f64::consts::PI * 100.0, curvature: 0.01 };
+        let road = Road::new(Pose { x: 0.0, y: 0.0, heading: 0.0 }, vec![ring; 50], 3.5, vec![30.0; 2], &[]);
+        let on_it = road.to_global(10.0, 0.0, 0.0);
+        assert_eq!(road.nearby(on_it.x, on_it.y, 0.5, 10.0, 8).0.len(), 1);
+        assert_eq!(road.nearby(on_it.x, on_it.y, 0.5, 10.0, 64).0.len(), 50);
+        assert!(road.to_frenet_among(&road.nearby(on_it.x, on_it.y, 0.5, 10.0, 8), on_it.x, on_it.y, 10.0).is_some());
     }
 
     #[test]

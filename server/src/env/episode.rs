@@ -55,10 +55,10 @@ pub struct Figures {
 
 /// The most control periods an env's episodes may hold for all its learners together
 /// (max_cycles x periods per step x learners): each period keeps one commanded jerk per
-/// learner (8 bytes) for the episode's percentile, so this bounds that memory at 16 MiB
-/// an env. One learner may drive 2^21 periods (58 simulated hours at 0.1 s), 1 024
-/// learners 2 048 periods each.
-pub const MAX_AGENT_PERIODS: usize = 1 << 21;
+/// learner (8 bytes) for the episode's percentile, so this bounds that memory at 8 MiB an
+/// env. One learner may drive 2^20 periods (29 simulated hours at 0.1 s), 1 024 learners
+/// 1 024 periods each.
+pub const MAX_AGENT_PERIODS: usize = 1 << 20;
 
 /// The running figures of one agent's episode.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -19,11 +19,13 @@ const RGB_WINDOW: f64 = 120.0;
 const TEXT_HEIGHT_PER_SIZE: u32 = 150;
 /// Length of the lane-end marker (m), painted just before the end across the ending lane.
 const LANE_END_MARKER: f64 = 1.5;
-/// The most boxes and sections of the road one pixel's paint looks at: far more than a
-/// road that does not lie over itself needs (a few dozen), so a picture costs at most this
-/// per pixel whatever road a client sends (one that passes a point this often is drawn
-/// from the passes looked at).
-const SECTIONS_PER_PIXEL: usize = 256;
+/// Pixels on a side of the square patches the ground is painted in: each patch first
+/// finds the road's sections near it (`Road::nearby`), then paints its pixels from those.
+const TILE: u32 = 8;
+/// The most sections one patch paints from: a road that does not lie over itself has one
+/// to three near a patch; one that passes it more often is painted from the pass nearest
+/// the patch's centre, so a picture's cost is bounded whatever road a client sends.
+const SECTIONS_PER_TILE: usize = 8;
 /// Width of the followed car's outline (m).
 const OUTLINE: f64 = 0.35;
 /// Metres of road per character in `ansi`, and characters each side of the focus.
@@ -108,10 +110,26 @@ pub fn rgb(world: &World, focus: Option<VehicleId>, end: Option<&str>, (height, 
     let centre = world.road().to_global(s0, d0, 0.0);
     let camera = Camera { centre: (centre.x, centre.y), scale: width as f64 / RGB_WINDOW, size: (height, width) };
     let mut pixels = vec![0u8; (height * width * 3) as usize];
-    for row in 0..height {
-        for col in 0..width {
-            let at = ((row * width + col) * 3) as usize;
-            pixels[at..at + 3].copy_from_slice(&ground(world, camera.world_at(row, col), 1.0 / camera.scale));
+    let (road, pixel) = (world.road(), 1.0 / camera.scale);
+    // A point twice the road's width from its reference line is grass wherever it projects.
+    let reach = 2.0 * road.lane_width() * road.lane_count() as f64 + 1.0;
+    for (top, left) in (0..height)
+        .step_by(TILE as usize)
+        .flat_map(|top| (0..width).step_by(TILE as usize).map(move |left| (top, left)))
+    {
+        let (rows, cols) = (top..(top + TILE).min(height), left..(left + TILE).min(width));
+        let centre = camera.world_at(top + TILE / 2, left + TILE / 2);
+        let nearby = road.nearby(centre.0, centre.1, TILE as f64 * pixel, reach, SECTIONS_PER_TILE);
+        for row in rows {
+            for col in cols.clone() {
+                let at = ((row * width + col) * 3) as usize;
+                let (x, y) = camera.world_at(row, col);
+                let paint = match road.to_frenet_among(&nearby, x, y, reach) {
+                    Some(frenet) => ground(world, frenet, pixel),
+                    None => GRASS,
+                };
+                pixels[at..at + 3].copy_from_slice(&paint);
+            }
         }
     }
     let mut canvas = Canvas { pixels: &mut pixels, height, width, size: (height / TEXT_HEIGHT_PER_SIZE).max(1) };
@@ -139,13 +157,11 @@ pub fn rgb(world: &World, focus: Option<VehicleId>, end: Option<&str>, (height, 
     Frame::Rgb { height, width, pixels }
 }
 
-/// The paint of the ground at global (x, y): grass, asphalt, a lane line or a lane-end
-/// marker. `pixel` is a pixel's size in metres.
-fn ground(world: &World, (x, y): (f64, f64), pixel: f64) -> [u8; 3] {
+/// The paint of the ground at (s, d), the nearest point of the reference line to a
+/// pixel: grass, asphalt, a lane line or a lane-end marker. `pixel` is a pixel's size in
+/// metres.
+fn ground(world: &World, (s, d): (f64, f64), pixel: f64) -> [u8; 3] {
     let road = world.road();
-    // A point twice the road's width from its reference line is grass wherever it projects.
-    let reach = 2.0 * road.lane_width() * road.lane_count() as f64 + 1.0;
-    let Some((s, d)) = road.to_frenet_within(x, y, reach, SECTIONS_PER_PIXEL) else { return GRASS };
     // The nearest point of the reference line is clamped to the road: a point before its
     // start or past its end projects onto an end exactly, and is not road.
     if s <= 0.0 || s >= road.length() || !road.contains(s, d) {

@@ -1,6 +1,8 @@
 //! `arena soak`: many clients, each on its own Zenoh session, stepping their own envs
 //! for a while: errors, step latency (p50, p99) and the server's memory before, during
 //! and after, so a server a lab leaves running can be checked for leaks and stalls.
+//! With `--attackers`, other sessions keep the server busy with the most expensive
+//! requests a client may send beside them: what one busy client costs the others.
 
 use std::time::{Duration, Instant};
 
@@ -13,6 +15,10 @@ use serde::Serialize;
 
 /// The most clients one soak opens: each is a Zenoh session with its own sockets.
 const MAX_CLIENTS: usize = 1024;
+/// Requests each attacker keeps in flight.
+const ATTACK_IN_FLIGHT: usize = 4;
+/// The attackers' frames: the largest a reply carries.
+const ATTACK_FRAME: (u32, u32) = (2300, 2300);
 
 /// Arguments of `arena soak`.
 #[derive(Debug, clap::Args)]
@@ -32,6 +38,14 @@ pub struct SoakArgs {
     /// (Zenoh's idle connection threads exit about 10 s after a burst of clients).
     #[arg(long, default_value_t = 15.0, value_name = "SECONDS")]
     settle: f64,
+    /// Sessions that keep the server busy beside the clients, each with
+    /// `ATTACK_IN_FLIGHT` expensive requests in flight: the --attack-scenario reset,
+    /// stepped and rendered at the largest frame, over and over.
+    #[arg(long, default_value_t = 0)]
+    attackers: usize,
+    /// The scenario file the attackers send inline.
+    #[arg(long, default_value = "scenarios/stress/knot-32.toml", value_name = "FILE")]
+    attack_scenario: std::path::PathBuf,
     /// Print the figures as one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -47,6 +61,8 @@ struct ClientRun {
 #[derive(Debug, Serialize)]
 struct Figures {
     clients: usize,
+    attackers: usize,
+    attack_requests: usize,
     seconds: f64,
     steps: usize,
     errors: usize,
@@ -72,6 +88,7 @@ pub fn run(args: SoakArgs) -> anyhow::Result<()> {
         args.settle.is_finite() && (0.0..=3600.0).contains(&args.settle),
         "--settle must be between 0 and 3600 seconds"
     );
+    anyhow::ensure!(args.attackers <= 64, "--attackers must be at most 64, not {}", args.attackers);
     let runtime = tokio::runtime::Runtime::new().context("cannot start the tokio runtime")?;
     let figures = runtime.block_on(soak(&args))?;
     if args.json {
@@ -97,6 +114,21 @@ async fn soak(args: &SoakArgs) -> anyhow::Result<Figures> {
         })?;
     let before = watcher.server_info(&server).await?;
     let deadline = Instant::now() + Duration::from_secs_f64(args.seconds);
+    let attack = if args.attackers > 0 {
+        std::fs::read_to_string(&args.attack_scenario)
+            .with_context(|| format!("reading --attack-scenario {}", args.attack_scenario.display()))?
+    } else {
+        String::new()
+    };
+    let mut attackers = Vec::with_capacity(args.attackers * ATTACK_IN_FLIGHT);
+    for k in 0..args.attackers {
+        let client = Client::connect(&args.connection).await.context("opening an attacker's Zenoh session")?;
+        for slot in 0..ATTACK_IN_FLIGHT {
+            let (client, server, text) = (client.clone(), server.clone(), attack.clone());
+            let seed = (k * ATTACK_IN_FLIGHT + slot) as u64;
+            attackers.push(tokio::spawn(async move { attack_until(client, server, text, seed, deadline).await }));
+        }
+    }
     let mut tasks = Vec::with_capacity(args.clients);
     for k in 0..args.clients {
         let (flags, server, scenario) = (args.connection.clone(), server.clone(), args.scenario.clone());
@@ -120,13 +152,35 @@ async fn soak(args: &SoakArgs) -> anyhow::Result<Figures> {
     for task in tasks {
         runs.push(task.await.context("a client task")?);
     }
+    let mut attack_requests = 0;
+    for attacker in attackers {
+        attack_requests += attacker.await.context("an attacker task")?;
+    }
     bar.finish_and_clear();
     // The server closes the envs of clients that closed and hands memory back once the
     // connection threads have gone.
     tokio::time::sleep(Duration::from_secs_f64(args.settle)).await;
     let after = watcher.server_info(&server).await?;
     watcher.close().await?;
-    Ok(figures(args, &runs, &before, peak, &after))
+    Ok(figures(args, &runs, attack_requests, &before, peak, &after))
+}
+
+/// One attacker's request stream until `deadline`: creates an env of `text` (sent
+/// inline), then resets, steps and renders it at `ATTACK_FRAME`; returns how many
+/// requests were answered (refusals included: they cost the server too).
+async fn attack_until(client: Client, server: String, text: String, seed: u64, deadline: Instant) -> usize {
+    let scenario = ScenarioSource::Inline { file_name: "attack.toml".into(), text };
+    let options = CreateOptions { render_size: Some(ATTACK_FRAME), ..CreateOptions::default() };
+    let Ok(mut env) = client.create_env(&server, scenario, options).await else { return 0 };
+    let mut answered = 1;
+    while Instant::now() < deadline {
+        let _ = env.reset(Some(seed), vec![]).await;
+        let _ = env.step(vec![]).await;
+        let _ = env.render(arena_protocol::RenderMode::RgbArray, None).await;
+        answered += 3;
+    }
+    let _ = env.close().await;
+    answered
 }
 
 /// One client: its own session and env, stepping until `deadline`.
@@ -181,7 +235,14 @@ fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0)
 }
 
-fn figures(args: &SoakArgs, runs: &[ClientRun], before: &ServerInfo, peak: u64, after: &ServerInfo) -> Figures {
+fn figures(
+    args: &SoakArgs,
+    runs: &[ClientRun],
+    attack_requests: usize,
+    before: &ServerInfo,
+    peak: u64,
+    after: &ServerInfo,
+) -> Figures {
     let mut latencies: Vec<Duration> = runs.iter().flat_map(|r| r.latencies.iter().copied()).collect();
     latencies.sort();
     let percentile = |p: f64| {
@@ -191,6 +252,8 @@ fn figures(args: &SoakArgs, runs: &[ClientRun], before: &ServerInfo, peak: u64, 
     let errors: Vec<&String> = runs.iter().flat_map(|r| &r.errors).collect();
     Figures {
         clients: args.clients,
+        attackers: args.attackers,
+        attack_requests,
         seconds: args.seconds,
         steps: latencies.len(),
         errors: errors.len(),
@@ -207,12 +270,15 @@ fn figures(args: &SoakArgs, runs: &[ClientRun], before: &ServerInfo, peak: u64, 
 
 fn print_table(f: &Figures) {
     println!(
-        "| clients | seconds | steps | errors | steps/s | step p50 | step p99 | RSS before | peak | after | envs after |"
+        "| clients | attackers (requests) | seconds | steps | errors | steps/s | step p50 | step p99 | RSS before | peak | \
+         after | envs after |"
     );
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     println!(
-        "| {} | {:.0} | {} | {} | {:.0} | {:.0} µs | {:.0} µs | {:.1} MiB | {:.1} MiB | {:.1} MiB | {} |",
+        "| {} | {} ({}) | {:.0} | {} | {} | {:.0} | {:.0} µs | {:.0} µs | {:.1} MiB | {:.1} MiB | {:.1} MiB | {} |",
         f.clients,
+        f.attackers,
+        f.attack_requests,
         f.seconds,
         f.steps,
         f.errors,

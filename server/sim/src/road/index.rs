@@ -227,6 +227,35 @@ impl SectionIndex {
         best.value
     }
 
+    /// Pushes onto `out`, in road order, every section whose box and chord come within
+    /// `bound` of (x, y); false, with `out` cut short, once more than `cap` do.
+    pub(super) fn collect(&self, x: f64, y: f64, bound: f64, cap: usize, out: &mut Vec<u32>) -> bool {
+        self.gather(0, x, y, bound, cap, out)
+    }
+
+    fn gather(&self, node: usize, x: f64, y: f64, bound: f64, cap: usize, out: &mut Vec<u32>) -> bool {
+        let node_at = &self.nodes[node];
+        if node_at.bounds.distance_below(x, y) > bound {
+            return true;
+        }
+        match node_at.kind {
+            Kind::Leaf { first, end } => {
+                for section in first..end {
+                    if self.chords[section].distance_below(x, y) <= bound {
+                        if out.len() == cap {
+                            return false;
+                        }
+                        out.push(section as u32);
+                    }
+                }
+                true
+            }
+            Kind::Split { right } => {
+                self.gather(node + 1, x, y, bound, cap, out) && self.gather(right, x, y, bound, cap, out)
+            }
+        }
+    }
+
     fn visit<T>(
         &self,
         node: usize,

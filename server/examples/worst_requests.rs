@@ -17,6 +17,7 @@ use arena_server::transport::{Limits, Registry, Scenarios};
 const CLIENT: ClientId = ClientId(5);
 
 fn main() {
+    let start = status_kib("VmRSS:");
     let registry = Registry::new("worst".into(), Scenarios::load(None).expect("built-in scenarios"), Limits::default());
     println!("| request | CPU s | peak MiB above before | reply bytes | answer |");
     println!("|---|---:|---:|---:|---|");
@@ -50,6 +51,29 @@ fn main() {
     let env =
         created(&registry, "create: 1 MiB, 2048 cars, a [vary] that always overlaps", vary(), CreateOptions::default());
     measure(&registry, "reset: that [vary], every draw refused", reset(env, &[]));
+    let kept = (status_kib("VmRSS:").saturating_sub(start)) as f64 / 1024.0;
+    println!("\nresident after: {kept:.1} MiB more than at the start, for the {} envs above", registry.len());
+    kept_at_most(&registry);
+}
+
+/// The most an env keeps between requests: the 1 MiB file, 64 overrides of 64 KiB at
+/// create and at reset, recording on, a step's frames of 2048 vehicles in its cached reply.
+fn kept_at_most(registry: &Registry) {
+    let overrides: Vec<(String, OptionValue)> =
+        (0..64).map(|_| ("description".to_string(), OptionValue::Str("x".repeat(64 << 10)))).collect();
+    let options = CreateOptions { overrides: overrides.clone(), record: true, ..CreateOptions::default() };
+    let before = status_kib("VmRSS:");
+    let mut text = vary();
+    text.truncate(text.find("[vary]").expect("a [vary] table"));
+    while text.len() < (1 << 20) - 64 {
+        text += "# padding to the inline bound\n";
+    }
+    let env = created(registry, "create: the env that keeps the most", text, options);
+    let reset = RequestBody::Reset { env, seq: 1, seed: Some(1), options: ResetOptions { overrides } };
+    measure(registry, "reset: 64 overrides of 64 KiB, recording", reset);
+    measure(registry, "step: 2048 vehicles recorded", RequestBody::Step { env, seq: 2, actions: vec![] });
+    let kept = (status_kib("VmRSS:").saturating_sub(before)) as f64 / 1024.0;
+    println!("\nthat env keeps {kept:.1} MiB resident between requests");
 }
 
 fn render_options() -> CreateOptions {

@@ -23,15 +23,17 @@ static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 struct Args {
     #[command(flatten)]
     connection: ConnectionFlags,
-    /// Most envs alive at once; further creates are refused with TooManyEnvs.
-    #[arg(long, default_value_t = 1024)]
+    /// Most envs alive at once; further creates are refused with TooManyEnvs. An env keeps
+    /// at most about 40 MiB between requests (docs/reliability.md, "Bounded cost"): the
+    /// default fits a 24 GiB machine.
+    #[arg(long, default_value_t = Limits::default().max_envs)]
     max_envs: usize,
     /// Most envs one party may hold at once; further creates are refused with TooManyEnvs.
     /// Under a site's access control (deploy/auth/) a party is a logged-in user, however
     /// many client ids it uses. On an open server it is a client id, and ids cost nothing:
     /// there one session can still fill the server while it runs (envs of clients that
     /// show no liveliness token are closed within seconds, the rest when they leave).
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = Limits::default().max_envs_per_client)]
     max_envs_per_client: usize,
     /// Seconds an env may stay untouched before it is closed.
     #[arg(long, default_value_t = 600.0)]

@@ -20,9 +20,16 @@ pub struct Limits {
     pub idle_timeout: Duration,
 }
 
+/// The most memory one env keeps between requests, by construction (MiB): the largest
+/// inline file and its overrides held by the scenario and the episode (24 MiB measured,
+/// `worst_requests`), a cached reply with a step's recorded frames (8 MiB) and the jerks
+/// of the longest episode (8 MiB, `MAX_AGENT_PERIODS`). The default `max_envs` times this
+/// is 20 GiB: within a 24 GiB machine (docs/reliability.md, "Bounded cost").
+pub const ENV_KEPT_MIB_AT_MOST: usize = 40;
+
 impl Default for Limits {
     fn default() -> Self {
-        Limits { max_envs: 1024, max_envs_per_client: 256, idle_timeout: Duration::from_secs(600) }
+        Limits { max_envs: 512, max_envs_per_client: 256, idle_timeout: Duration::from_secs(600) }
     }
 }
 

@@ -26,7 +26,7 @@ use arena_protocol::{
 use zenoh::Wait;
 use zenoh::sample::SampleKind;
 
-pub use limits::{Limits, ORPHAN_GRACE};
+pub use limits::{ENV_KEPT_MIB_AT_MOST, Limits, ORPHAN_GRACE};
 pub use registry::{Ahead, MAX_CLIENT_TAGS, Registry};
 pub use scenarios::Scenarios;
 

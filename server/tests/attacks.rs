@@ -11,6 +11,7 @@ use arena_protocol::{
     ClientId, ClientTag, CreateOptions, EnvId, ErrorCode, MAX_MESSAGE_BYTES, OptionValue, PROTOCOL_VERSION, RenderMode,
     Reply, ReplyBody, Request, RequestBody, ResetOptions, ScenarioSource, decode, encode,
 };
+use arena_server::env::MAX_AGENT_PERIODS;
 use arena_server::transport::{Limits, MAX_CLIENT_TAGS, ORPHAN_GRACE, Registry, Scenarios};
 
 const CLIENT: ClientId = ClientId(41);
@@ -108,6 +109,12 @@ fn episodes_whose_length_or_step_has_no_bound_are_refused_before_anything_is_mad
     // max_cycles 2^32 - 1 with 500 s steps reserved 171 TB for the episode's jerks.
     let long = CreateOptions { max_cycles: Some(u32::MAX), ..CreateOptions::default() };
     invalid(create(&registry, named("merge"), long), &["max_cycles 4294967295", "periods an episode"]);
+    // merge: one learner, one period a step.
+    let most = MAX_AGENT_PERIODS as u32;
+    let at = CreateOptions { max_cycles: Some(most), ..CreateOptions::default() };
+    assert!(create(&registry, named("merge"), at).is_ok(), "max_cycles {most} fits");
+    let past = CreateOptions { max_cycles: Some(most + 1), ..CreateOptions::default() };
+    invalid(create(&registry, named("merge"), past), &[&format!("max_cycles {}", most + 1)]);
     let slow =
         CreateOptions { overrides: vec![("sim.step_dt".into(), OptionValue::Float(500.0))], ..Default::default() };
     invalid(create(&registry, named("merge"), slow), &["sim.step_dt"]);
@@ -130,10 +137,14 @@ fn learners_and_game_theoretic_decisions_past_their_bounds_are_refused() {
     // decision per learner and step: both count.
     let policy = arena_protocol::BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Nash };
     let driven = CreateOptions { policy: Some(policy), ..CreateOptions::default() };
-    invalid(create(&registry, inline(learners(70)), driven), &["71 game-theoretic cars", "policy"]);
+    // Just at and just past each bound (the file's own learner and `n` more).
+    let gt_cars = arena_sim::MAX_GT_CARS;
+    assert!(create(&registry, inline(learners(gt_cars - 1)), driven.clone()).is_ok(), "{gt_cars} cars fit");
+    invalid(create(&registry, inline(learners(gt_cars)), driven), &[&format!("{} game-theoretic cars", gt_cars + 1)]);
     let advised = CreateOptions { expert: Some(arena_protocol::Game::Nash), ..CreateOptions::default() };
-    invalid(create(&registry, inline(learners(330)), advised.clone()), &["331 expert decision"]);
-    assert!(create(&registry, inline(learners(300)), advised).is_ok(), "301 learners with an expert fit");
+    let decisions = arena_sim::MAX_GT_DECISIONS_PER_STEP;
+    assert!(create(&registry, inline(learners(decisions - 1)), advised.clone()).is_ok(), "{decisions} experts fit");
+    invalid(create(&registry, inline(learners(decisions)), advised), &[&format!("{} expert decision", decisions + 1)]);
     still_serves(&registry);
 }
 

@@ -108,8 +108,8 @@ impl EpisodeStats {
 
     /// Whether these figures, read from outside (a snapshot), could be an episode's of at
     /// most `steps` steps and `periods` control periods on a road of `lanes` lanes: every
-    /// sum finite, gaps and times to collision not NaN and not negative, no more jerks than
-    /// periods.
+    /// sum finite, least gaps and times to collision not NaN nor minus infinity, no more
+    /// jerks than periods.
     pub fn check(&self, steps: u32, periods: usize, lanes: usize) -> Result<(), String> {
         let c = &self.cost_squares;
         let sums = [self.total_reward, self.speed_sum, c.safety, c.comfort, c.efficiency, self.start_d];
@@ -117,8 +117,9 @@ impl EpisodeStats {
         if !sums.into_iter().chain(times.into_iter().flatten()).all(f64::is_finite) {
             return Err("a sum or time of its episode that is not finite".into());
         }
-        if !([self.min_gap, self.min_ttc].into_iter().all(|least| least >= 0.0)) {
-            return Err(format!("a least gap {} or time to collision {} below 0", self.min_gap, self.min_ttc));
+        // A gap is negative where cars overlap, and +inf until one mattered.
+        if [self.min_gap, self.min_ttc].into_iter().any(|least| least.is_nan() || least == f64::NEG_INFINITY) {
+            return Err(format!("a least gap {} or time to collision {} that is no size", self.min_gap, self.min_ttc));
         }
         if [c.safety, c.comfort, c.efficiency].into_iter().any(|square| square < 0.0) {
             return Err("a negative sum of squared costs".into());

@@ -41,6 +41,7 @@ use arena_sim::{ActionKind, DriverSpec, Scenario};
 use arena_sim::{Game, GtDriver};
 use arena_sim::{Status, VehicleId, World};
 
+pub use episode::MAX_AGENT_PERIODS;
 pub use observation::{KINEMATICS_FEATURES, KINEMATICS_VEHICLES};
 
 /// A learner's vehicle.

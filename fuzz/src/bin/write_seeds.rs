@@ -1,7 +1,7 @@
-//! Writes the seed inputs of `decode_request` and `handle_request` into
-//! `fuzz/seeds/<target>`, so they follow the protocol (its version, its messages) rather
-//! than being bytes nobody can remake. Run from the repository root after any change to
-//! the protocol:
+//! Writes the seed inputs of `decode_request`, `handle_request` and `restore` into
+//! `fuzz/seeds/<target>`, so they follow the protocol (its version, its messages, its
+//! snapshots) rather than being bytes nobody can remake. Run from the repository root
+//! after any change to the protocol or to what a snapshot holds:
 //!
 //! ```sh
 //! cargo +nightly run --manifest-path fuzz/Cargo.toml --bin write_seeds
@@ -10,14 +10,19 @@
 //! `decode_request` gets one encoded request of every kind. `handle_request` gets each of
 //! them twice, in the target's two modes (its first byte): `raw-*` (0, the request as it
 //! arrives) and `live-*` (1, then the byte that picks a live env, then the request, which
-//! the target points at that env). Files of these names are replaced; others are left.
+//! the target points at that env). `restore` gets, for each of its envs, the byte that
+//! picks it and the body of a snapshot of that env taken mid-episode, named after the
+//! env (`<scenario>`, or the scenario and its options). Files of these names are
+//! replaced; others are left.
 
 use std::path::{Path, PathBuf};
 
+use arena_fuzz::{ask, body, live_env, restore_envs};
 use arena_protocol::{
-    Action, BatchStep, ClientId, CreateOptions, EnvId, OptionValue, PROTOCOL_VERSION, RenderMode, Request, RequestBody,
-    ResetOptions, ScenarioSource, encode,
+    Action, BatchStep, ClientId, CreateOptions, EnvId, OptionValue, PROTOCOL_VERSION, RenderMode, ReplyBody, Request,
+    RequestBody, ResetOptions, ScenarioSource, encode,
 };
+use arena_server::transport::{Limits, Registry, Scenarios};
 
 /// The requests, by file name, and the live env `handle_request` should point each at
 /// (0 merge, 1 highway, 2 overtake with continuous actions: its `LIVE` table).
@@ -90,6 +95,22 @@ fn write(dir: &Path, name: &str, bytes: &[u8]) {
     std::fs::write(&path, bytes).unwrap_or_else(|e| panic!("cannot write {}: {e}", path.display()));
 }
 
+/// Writes `restore`'s seeds: each env's picking byte, then its snapshot's body. Returns
+/// how many.
+fn restore_seeds(seeds: &Path) -> usize {
+    let registry = Registry::new("seeds".into(), Scenarios::load(None).expect("built-in scenarios"), Limits::default());
+    let envs = restore_envs();
+    for (index, spec) in envs.iter().enumerate() {
+        let (env, _) = live_env(&registry, spec);
+        let ReplyBody::Snapshot(snapshot) = ask(&registry, RequestBody::Snapshot { env }) else {
+            panic!("no snapshot of the {} env", spec.name)
+        };
+        let pick = u8::try_from(index).expect("fewer than 256 envs");
+        write(&seeds.join("restore"), &spec.name, &[&[pick][..], body(&snapshot)].concat());
+    }
+    envs.len()
+}
+
 fn main() {
     let seeds = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("seeds");
     let mut count = 0;
@@ -100,4 +121,6 @@ fn main() {
         count += 1;
     }
     println!("wrote {count} requests (protocol {PROTOCOL_VERSION}) to {}", seeds.display());
+    let snapshots = restore_seeds(&seeds);
+    println!("wrote {snapshots} snapshot bodies to {}", seeds.join("restore").display());
 }

@@ -163,6 +163,10 @@ impl World {
             if car.id.0 as usize != index || !lane_ok(car.lane) || !lane_ok(car.target_lane) || !kind_matches {
                 return Err(invalid(format!("scene car {index}: another id, driver or a lane the road does not have")));
             }
+            // The gt cars' MPC reads a car's constants from the scene, not from its vehicle.
+            if car.style != ours.style || car.driver_params != ours.driver_params {
+                return Err(invalid(format!("scene car {index}: driver constants other than its vehicle's")));
+            }
         }
         let mut seen = vec![false; n];
         for &place in &state.order {
@@ -287,6 +291,10 @@ mod tests {
             ("other constants", Box::new(|s| first_gt(s).params.decision.prediction.samples = 1 << 40)),
             ("scene car 1: a number", Box::new(|s| s.scene_cars[1].state.vx = f64::INFINITY)),
             ("scene car 1", Box::new(|s| s.scene_cars[1].lane = LaneId(40))),
+            // Constants the gt cars' MPC reads from the scene (found by the `restore` fuzz
+            // target: a NaN v_ref and a K_0 of 4e228 were taken).
+            ("scene car 1: driver constants", Box::new(|s| s.scene_cars[1].driver_params.reference_speed = f64::NAN)),
+            ("scene car 0: driver constants", Box::new(|s| s.scene_cars[0].driver_params.steering_ratio = 4e228)),
             ("sorted order", Box::new(|s| s.order[0] = s.order[1])),
             (
                 "collision of vehicles",

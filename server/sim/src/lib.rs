@@ -21,8 +21,8 @@ mod world;
 // games, the field, the MPC's matrices, the integrator, IDM/MOBIL's internals.
 pub use dynamics::{
     Command, DriverParams, JerkSummary, LANE_CHANGE_BOUNDS, LANE_CHANGE_DURATION, LaneChangeBounds, LaneChangeResponse,
-    LateralPath, RK4_CHECK_SPEEDS, Style, VehicleParams, VehicleState, commanded_jerk, cruising_modes,
-    lane_change_response, lane_change_trajectory, lateral_modes, longitudinal_jerk, rk4_growth,
+    LateralPath, MAX_STATE_MAGNITUDE, RK4_CHECK_SPEEDS, Style, VehicleParams, VehicleState, commanded_jerk,
+    cruising_modes, lane_change_response, lane_change_trajectory, lateral_modes, longitudinal_jerk, rk4_growth,
 };
 pub use gt::{
     AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, Explanation,
@@ -35,7 +35,7 @@ pub use road::{LaneChange, LaneId, NearbySections, Pose, Road, Section};
 pub use scenario::{
     ActionKind, BUILTIN_SCENARIOS, DriverSpec, EPISODE_DRAWS, Goal, GtTraffic, MAX_CONTROL_PERIODS_PER_STEP,
     MAX_GT_CARS, MAX_GT_DECISIONS_PER_STEP, MAX_LEARNERS, MAX_PHYSICS_TICKS_PER_STEP, MAX_ROAD_EXTENT,
-    MAX_ROAD_SECTIONS, MAX_SCENARIO_DEPTH, MAX_VARY_KEYS, MAX_VEHICLES, RewardSpec, Scenario, ScenarioError,
+    MAX_ROAD_SECTIONS, MAX_SCENARIO_DEPTH, MAX_SPEED, MAX_VARY_KEYS, MAX_VEHICLES, RewardSpec, Scenario, ScenarioError,
     ScenarioErrorKind, TrafficSpec, VARY_DRAW_BUDGET_BYTES, Variation, VehicleSpec, builtin_scenario,
 };
 pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};

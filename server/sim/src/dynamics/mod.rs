@@ -45,7 +45,7 @@ pub use physics_step::{
 };
 #[cfg(test)]
 use state::INPUTS;
-pub use state::{Command, STATES, VehicleState};
+pub use state::{Command, MAX_STATE_MAGNITUDE, STATES, VehicleState, within_state};
 
 #[cfg(test)]
 mod tests;

@@ -8,6 +8,18 @@ use super::lanes::{self, Lanes};
 use super::model::{Model, body_derivative, lateral_forces, longitudinal_derivative};
 use super::params::{DriverParams, VehicleParams};
 
+/// The largest size of any number of a restored state: a position, speed, angle, command
+/// or time. Finite is not enough (a speed of 1e180 turns the dynamics to NaN within one
+/// step); within it the dynamics stay finite over a step (fuzzed, server/tests/fuzz.rs),
+/// and every state a world can step into lies far inside it (roads reach 1e6 m, speeds
+/// 100 m/s, episodes 2^20 periods).
+pub const MAX_STATE_MAGNITUDE: f64 = 1e9;
+
+/// Whether `value` may be a number of a restored state (`MAX_STATE_MAGNITUDE`).
+pub fn within_state(value: f64) -> bool {
+    value.is_finite() && value.abs() <= MAX_STATE_MAGNITUDE
+}
+
 /// Number of states: [vx, vy, r, heading, s, d, steer, steer_rate] (eq. 8's x).
 pub const STATES: usize = 8;
 /// Number of inputs: [a_x, Y_p].

@@ -264,8 +264,8 @@ impl GtDriver {
         if (self.game, self.role) != (like.game, like.role) || self.params != like.params {
             return Err("another driver, or the same with other constants".into());
         }
-        if !self.memory_numbers().all(f64::is_finite) {
-            return Err("a number that is not finite in its driver's memory".into());
+        if !self.memory_numbers().all(crate::dynamics::within_state) {
+            return Err("a number that is not finite, or past MAX_STATE_MAGNITUDE, in its driver's memory".into());
         }
         if self.plan.len() > self.params.mpc.control_horizon.max(1) {
             return Err(format!(

@@ -19,6 +19,11 @@ pub const MAX_ROAD_SECTIONS: usize = 1024;
 /// relies on.
 pub const MAX_ROAD_EXTENT: f64 = 1.0e6;
 
+/// Fastest a scenario may set a car or a lane (m/s): speeds, target speeds, speed limits
+/// and traffic's speed range. 100 m/s is 360 km/h, over twice the shipped highways'; a
+/// speed of 1e180 turned the dynamics to NaN within one step.
+pub const MAX_SPEED: f64 = 100.0;
+
 /// Most vehicles a scenario may have, its `[[vehicle]]`s and its `[traffic] count`
 /// together (each alone, and their sum). Every physics tick moves every vehicle, and every
 /// driver looks at its neighbours: 2048 keeps a world's step near a millisecond per tick

@@ -773,3 +773,25 @@ mod overlap {
         }
     }
 }
+
+#[test]
+fn speeds_are_at_most_max_speed() {
+    let at = format!("{MAX_SPEED:.1}");
+    let past = format!("{:.1}", MAX_SPEED + 0.5);
+    for (replace, key) in
+        [("s = 10.0\nspeed = 20.0", "vehicle 'a'.speed"), ("speed_limits = [30.0, 30.0]", "road.speed_limits")]
+    {
+        let (good, bad) = match key {
+            "road.speed_limits" => (format!("speed_limits = [{at}, 30.0]"), format!("speed_limits = [{past}, 30.0]")),
+            _ => (format!("s = 10.0\nspeed = {at}"), format!("s = 10.0\nspeed = {past}")),
+        };
+        assert!(parse(&with(replace, &good)).is_ok(), "{key} at {at}");
+        let message = error(&with(replace, &bad));
+        assert!(message.contains(&format!("`{key}`")) && message.contains("MAX_SPEED"), "{message}");
+    }
+    // A speed of 1e180 turned the dynamics to NaN within a step (the restore fuzz target).
+    let message = error(&with("s = 10.0\nspeed = 20.0", "s = 10.0\nspeed = 1e180"));
+    assert!(message.contains("MAX_SPEED"), "{message}");
+    let target = error(&with("s = 10.0\nspeed = 20.0", &format!("s = 10.0\nspeed = 20.0\ntarget_speed = {past}")));
+    assert!(target.contains("target_speed") && target.contains("MAX_SPEED"), "{target}");
+}

@@ -4,7 +4,7 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::bounds::MAX_ROAD_EXTENT;
+use super::bounds::{MAX_ROAD_EXTENT, MAX_SPEED};
 use super::file::{DriverFile, GoalFile, OriginFile, RewardFile, RoadFile, ScenarioFile, TrafficFile, VehicleFile};
 use super::vary::validate_vary;
 use super::{DriverSpec, Goal, GtTraffic, RewardSpec, Scenario, ScenarioErrorKind, TrafficSpec, VehicleSpec};
@@ -136,8 +136,11 @@ impl RoadFile {
                 format!("has {} entries but the road has {} lanes", self.speed_limits.len(), self.lanes),
             ));
         }
-        if let Some(bad) = self.speed_limits.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
-            return Err(invalid("road.speed_limits", format!("must be positive speeds in m/s, not {bad}")));
+        if let Some(bad) = self.speed_limits.iter().find(|v| !(v.is_finite() && **v > 0.0 && **v <= MAX_SPEED)) {
+            return Err(invalid(
+                "road.speed_limits",
+                format!("must be positive speeds in m/s of at most {MAX_SPEED} (MAX_SPEED), not {bad}"),
+            ));
         }
         if self.sections.is_empty() {
             return Err(invalid("road.sections", "needs at least one section".into()));
@@ -233,12 +236,18 @@ impl VehicleFile {
         if self.name.is_empty() || self.name.contains(|c: char| c.is_whitespace() || c == '/') {
             return Err(invalid("name", "must be non-empty, without spaces or '/'".into()));
         }
-        if !(self.speed.is_finite() && self.speed >= 0.0) {
-            return Err(invalid("speed", format!("must be a speed >= 0 in m/s, not {}", self.speed)));
+        if !(self.speed.is_finite() && (0.0..=MAX_SPEED).contains(&self.speed)) {
+            return Err(invalid(
+                "speed",
+                format!("must be a speed in m/s from 0 to {MAX_SPEED} (MAX_SPEED), not {}", self.speed),
+            ));
         }
         let target_speed = self.target_speed.unwrap_or(self.speed);
-        if !(target_speed.is_finite() && target_speed > 0.0) {
-            return Err(invalid("target_speed", format!("must be positive, not {target_speed}")));
+        if !(target_speed.is_finite() && target_speed > 0.0 && target_speed <= MAX_SPEED) {
+            return Err(invalid(
+                "target_speed",
+                format!("must be positive and at most {MAX_SPEED} m/s (MAX_SPEED), not {target_speed}"),
+            ));
         }
         let (s, d, lane) = match (self.lane, self.s, self.x, self.y) {
             (Some(lane), Some(s), None, None) => {
@@ -373,10 +382,10 @@ impl TrafficFile {
             return Err(invalid("traffic.density", format!("must be positive, not {}", self.density)));
         }
         let [low, high] = self.speed;
-        if !(low.is_finite() && high.is_finite() && 0.0 < low && low <= high) {
+        if !(low.is_finite() && high.is_finite() && 0.0 < low && low <= high && high <= MAX_SPEED) {
             return Err(invalid(
                 "traffic.speed",
-                format!("must be [low, high] with 0 < low <= high, not [{low}, {high}]"),
+                format!("must be [low, high] with 0 < low <= high <= {MAX_SPEED} (MAX_SPEED), not [{low}, {high}]"),
             ));
         }
         let lanes = self.lanes.unwrap_or_else(|| (0..road.lane_count() as i64).collect());

@@ -13,6 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::{AgentCommand, Collision, Driver, Vehicle, World};
+use crate::dynamics::within_state;
 use crate::road::LaneId;
 use crate::scene::{Car, DriverKind};
 
@@ -144,15 +145,18 @@ impl World {
             if !lanes_used.into_iter().flatten().all(lane_ok) {
                 return Err(invalid(format!("{}: a lane the road (lanes 0..{lanes}) does not have", at())));
             }
-            if !vehicle_numbers(theirs).all(f64::is_finite) {
+            if !vehicle_numbers(theirs).all(within_state) {
                 return Err(invalid(format!(
-                    "{}: a number that is not finite (its state, command, path or driver's memory)",
+                    "{}: a number that is not finite, or past MAX_STATE_MAGNITUDE (its state, command, path or driver's \
+                     memory)",
                     at()
                 )));
             }
             let car = &state.scene_cars[index];
-            if !car_numbers(car).all(f64::is_finite) {
-                return Err(invalid(format!("scene car {index}: a number that is not finite")));
+            if !car_numbers(car).all(within_state) {
+                return Err(invalid(format!(
+                    "scene car {index}: a number that is not finite, or past MAX_STATE_MAGNITUDE"
+                )));
             }
             let kind_matches = matches!(
                 (car.driver, &ours.driver),
@@ -287,6 +291,10 @@ mod tests {
                 }),
             ),
             ("a plan of 11 moves", Box::new(|s| first_gt(s).plan = vec![0.0; 11])),
+            // Finite but past what the dynamics stay finite with (the restore fuzz target).
+            ("MAX_STATE_MAGNITUDE", Box::new(|s| s.vehicles[0].state.vx = 1e180)),
+            ("MAX_STATE_MAGNITUDE", Box::new(|s| s.scene_cars[1].state.heading = -4e228)),
+            ("MAX_STATE_MAGNITUDE", Box::new(|s| first_gt(s).preview = Some(1e10))),
             ("other constants", Box::new(|s| first_gt(s).params.decision.game.accel_step = 1e-300)),
             ("other constants", Box::new(|s| first_gt(s).params.decision.prediction.samples = 1 << 40)),
             ("scene car 1: a number", Box::new(|s| s.scene_cars[1].state.vx = f64::INFINITY)),

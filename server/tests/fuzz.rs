@@ -24,7 +24,7 @@ use arena_protocol::{
     PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetOptions, ScenarioSource, TensorData, decode, encode,
 };
 use arena_server::transport::{Limits, Registry, Scenarios};
-use arena_sim::{GtDriver, RngState, WorldState};
+use arena_sim::{GtDriver, RngState, Vehicle, WorldState};
 use proptest::prelude::*;
 use proptest::sample::{Index, select};
 use serde::de::DeserializeOwned;
@@ -242,11 +242,12 @@ fn framed(body: &[u8]) -> Vec<u8> {
 }
 
 /// Where a snapshot body's fields lie, as far as their public types let them be found:
-/// the body is the server's private `Body` (scenario, hash, options, world seed, reset
-/// overrides, seed stream, cycles, agents, world) in the protocol's codec, and a field of
-/// public type `T` at a known start ends where the bytes first decode as a whole `T`.
-/// Of the agents, the first one's expert memory is found; then the world, and in it the
-/// first agent's vehicle state (its eight floats follow the vehicle's name).
+/// the body is the server's private `Body` (scenario, hash, options, then the env's state:
+/// world seed, reset overrides, seed stream, cycles, agents; then the world's state) in
+/// the protocol's codec, and a field of public type `T` at a known start ends where the
+/// bytes first decode as a whole `T`. Of the agents, the first one's vehicle and expert
+/// memory are found; then the world, and in it that vehicle's state (its eight floats
+/// follow the vehicle's name).
 #[derive(Debug, Clone)]
 struct Layout {
     world_seed: Range<usize>,
@@ -277,18 +278,20 @@ impl Layout {
         let seeds = span::<RngState>(body, overrides.end);
         let cycles = span::<u32>(body, seeds.end);
         let count = span::<u64>(body, cycles.end);
-        let name = span::<String>(body, count.end);
-        let vehicle = span::<u32>(body, name.end);
+        let vehicle = span::<u32>(body, count.end);
         let live = span::<bool>(body, vehicle.end);
         let expert = span::<Option<GtDriver>>(body, live.end);
         // The first place after the first agent's expert from which the rest decodes as a
-        // world: a tail of the world can decode as one too (no vehicles, then its scene).
+        // world.
         let world = (expert.end..body.len())
             .find(|&at| decode::<WorldState>(&body[at..]).is_ok())
             .expect("a world at the end of a snapshot body");
-        let name = &body[name];
-        let named = body[world..].windows(name.len()).position(|bytes| bytes == name).expect("the agent's vehicle");
-        let learner = world + named + name.len();
+        let index: u32 = decode(&body[vehicle.clone()]).expect("the agent's vehicle id");
+        let mut at = span::<u64>(body, world).end;
+        for _ in 0..index {
+            at = span::<Vehicle>(body, at).end;
+        }
+        let learner = span::<String>(body, at).end;
         Layout {
             world_seed,
             overrides,

@@ -19,7 +19,8 @@ use std::time::{Duration, Instant};
 use arena_paper::{PaperOptions, PaperScenario, world};
 use arena_sim::Driver;
 use arena_sim::Style;
-use arena_sim::{Game, GtDriver, GtParams, Mpc, expert_decision, plan, plan_motion};
+use arena_sim::analysis::{Mpc, plan_motion};
+use arena_sim::{Game, GtDriver, GtParams, expert_decision, plan};
 use arena_sim::{Scene, VehicleId, builtin_scenario};
 use criterion::Criterion;
 
@@ -110,12 +111,13 @@ fn tails() {
 fn highway_gt_scenes(seed: u64) -> Vec<(Scene, Vec<(VehicleId, GtDriver)>)> {
     let scenario = builtin_scenario("highway-gt").expect("highway-gt is built in").expect("it validates");
     let mut world = scenario.build(seed);
-    world.set_decision_threads(1);
+    let mut stepper = arena_sim::Stepper::new();
+    stepper.set_decision_threads(1);
     let ticks_per_second = (1.0 / world.params().physics_dt).round() as usize;
     let mut scenes = Vec::new();
     for second in 1..=24 {
         for _ in 0..ticks_per_second {
-            world.tick();
+            stepper.tick(&mut world);
         }
         if second < 5 {
             continue;
@@ -169,10 +171,11 @@ fn world_rate(threads: usize) {
     let mut digest = std::hash::DefaultHasher::new();
     for seed in 0..3 {
         let mut world = scenario.build(seed);
-        world.set_decision_threads(threads);
-        world.advance(5.0);
+        let mut stepper = arena_sim::Stepper::new();
+        stepper.set_decision_threads(threads);
+        stepper.advance(&mut world, 5.0);
         let start = Instant::now();
-        world.advance(20.0);
+        stepper.advance(&mut world, 20.0);
         elapsed += start.elapsed();
         world.vehicles().iter().flat_map(|v| v.state.to_array()).for_each(|x| digest.write_u64(x.to_bits()));
     }

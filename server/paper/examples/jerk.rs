@@ -7,7 +7,8 @@
 //! `cargo run --release -p arena-paper --example jerk [-- --off]`
 
 use arena_paper::{PaperOptions, PaperScenario};
-use arena_sim::{Driver, Game, JerkSummary, Style, commanded_jerk, longitudinal_jerk};
+use arena_sim::analysis::{JerkSummary, commanded_jerk, longitudinal_jerk};
+use arena_sim::{Driver, Game, Style};
 
 /// EC's commanded jerks, its per-step jerks and its exempt commands (aborts, emergencies)
 /// over one run.
@@ -19,9 +20,10 @@ fn run(scenario: PaperScenario, style: Style, game: Game, options: &PaperOptions
     let periods = (scenario.duration() / control_dt).round() as usize;
     let (mut commanded, mut per_step) = (Vec::new(), Vec::new());
     let (mut command, mut accel) = (world.vehicle(ec).command.accel, None);
+    let mut stepper = arena_sim::Stepper::new();
     for _ in 0..periods {
         for k in 0..substeps {
-            world.tick();
+            stepper.tick(&mut world);
             let v = world.vehicle(ec);
             if k == 0 {
                 commanded.push(commanded_jerk(command, v.command.accel, control_dt));

@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 
 use arena_sim::LaneChange;
 use arena_sim::Preset;
+use arena_sim::Stepper;
 use arena_sim::Style;
 use arena_sim::{BUILTIN_SCENARIOS, DriverSpec, Scenario, ScenarioError};
 use arena_sim::{CostComponents, Game, GtParams, stage_cost};
@@ -250,16 +251,17 @@ pub fn run_world(
     let periods = (options.duration.unwrap_or(scenario.duration()) / world.params().control_dt).round() as usize;
     let mut samples = Vec::with_capacity(periods);
     let params = world.gt_params(ec);
+    let mut stepper = Stepper::new();
     for _ in 0..periods {
         let (t, speeds, gaps, d) = observe(&world, &ids);
-        world.tick(); // decides at t
+        stepper.tick(&mut world); // decides at t
         let lane_change = match &world.vehicle(ec).driver {
             Driver::Gt(gt) => gt.decision.lane_change,
             _ => LaneChange::Keep,
         };
         let accel = world.vehicle(ec).command.accel;
         for _ in 1..substeps {
-            world.tick();
+            stepper.tick(&mut world);
         }
         // At the period's end, as the env samples its rewards: one definition of the RMS
         // for `arena paper` and `arena eval`.

@@ -38,11 +38,11 @@ fn world_step(c: &mut Criterion) {
                 let mut elapsed = Duration::ZERO;
                 let mut left = ticks;
                 while left > 0 {
-                    let mut world = start.clone();
+                    let (mut world, mut stepper) = (start.clone(), arena_sim::Stepper::new());
                     let run = left.min(6000);
                     let clock = Instant::now();
                     for _ in 0..run {
-                        world.tick();
+                        stepper.tick(&mut world);
                     }
                     elapsed += clock.elapsed();
                     black_box(&world);

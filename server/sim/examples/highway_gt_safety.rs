@@ -44,12 +44,13 @@ fn ahead(world: &World, id: VehicleId, lane: LaneId) -> String {
 fn trace(seed: u64, name: &str, from: f64, to: f64) {
     let scenario = highway_gt::scenario();
     let mut world = highway_gt::world(&scenario, seed);
-    world.set_decision_threads(1);
+    let mut stepper = arena_sim::Stepper::new();
+    stepper.set_decision_threads(1);
     let id = world.find(name).expect("CAR: a vehicle's name (car0..car49, ego_0)");
     let substeps = world.params().substeps_per_control();
     while world.time() < to - 1e-9 {
         for _ in 0..substeps {
-            world.tick();
+            stepper.tick(&mut world);
         }
         if world.time() < from - 1e-9 {
             continue;

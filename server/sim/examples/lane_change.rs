@@ -2,7 +2,8 @@
 //! physics step (the table in docs/parameters.md, "Driver"), with the manoeuvre and bounds
 //! of `dynamics::LANE_CHANGE_BOUNDS`: `cargo run --release -p arena-sim --example lane_change`
 
-use arena_sim::{LANE_CHANGE_BOUNDS, Style, lane_change_response};
+use arena_sim::Style;
+use arena_sim::analysis::{LANE_CHANGE_BOUNDS, lane_change_response};
 
 fn main() {
     let (bounds, dt) = (LANE_CHANGE_BOUNDS, 0.01);

@@ -19,9 +19,9 @@ fn sway(style: Style, speed: f64, driver: Driver) -> f64 {
     car.state.d = 0.05;
     let id = world.add(car);
     world.advance(SECONDS - TAIL);
-    let mut largest = 0.0f64;
+    let (mut largest, mut stepper) = (0.0f64, arena_sim::Stepper::new());
     for _ in 0..(TAIL / world.params().physics_dt).round() as usize {
-        world.tick();
+        stepper.tick(&mut world);
         largest = largest.max(world.vehicle(id).state.d.abs());
     }
     largest

@@ -22,7 +22,8 @@ use arena_sim::Game;
 use arena_sim::GtParams;
 use arena_sim::Role;
 use arena_sim::Style;
-use arena_sim::{Driver, Ending, JerkSummary, Status, commanded_jerk, longitudinal_jerk};
+use arena_sim::analysis::{JerkSummary, commanded_jerk, longitudinal_jerk};
+use arena_sim::{Driver, Ending, Status};
 use arena_sim::{DriverSpec, Scenario, builtin_scenario};
 
 struct Episode {
@@ -63,7 +64,8 @@ fn episode(scenario: &Scenario, seed: u64, style: Style, game: Game, params: GtP
         }
     }
     let mut world = drawn.build(world_seed);
-    world.set_decision_threads(1);
+    let mut stepper = arena_sim::Stepper::new();
+    stepper.set_decision_threads(1);
     let ec = world.find("ec_0").expect("merge-random has ec_0");
     let ticks = (drawn.step_dt / world.params().physics_dt).round() as u64;
     let start_lane = world.vehicle(ec).target_lane;
@@ -85,7 +87,7 @@ fn episode(scenario: &Scenario, seed: u64, style: Style, game: Game, params: GtP
     for _ in 0..drawn.max_cycles {
         for _ in 0..ticks {
             let driving = world.vehicle(ec).status == Status::Driving;
-            world.tick();
+            stepper.tick(&mut world);
             let v = world.vehicle(ec);
             if driving {
                 if count.is_multiple_of(substeps) {

@@ -15,11 +15,11 @@
 //! 4. the cost: vehicle-substeps per simulated second of highway.toml.
 
 use arena_sim::Status;
-use arena_sim::{BUILTIN_SCENARIOS, Scenario};
-use arena_sim::{
-    DriverParams, LANE_CHANGE_BOUNDS, LANE_CHANGE_DURATION, RK4_CHECK_SPEEDS, Style, cruising_modes,
-    lane_change_trajectory, lateral_modes, rk4_growth,
+use arena_sim::analysis::{
+    LANE_CHANGE_BOUNDS, RK4_CHECK_SPEEDS, cruising_modes, lane_change_trajectory, lateral_modes, rk4_growth,
 };
+use arena_sim::{BUILTIN_SCENARIOS, Scenario};
+use arena_sim::{DriverParams, LANE_CHANGE_DURATION, Style};
 
 /// Candidate physics steps (s); the ones that do not divide the control period are skipped.
 const CANDIDATES: [f64; 8] = [0.005, 0.01, 0.02, 0.025, 0.1 / 3.0, 0.04, 0.05, 0.1];

@@ -23,7 +23,8 @@
 //! slope in v_x multiplies the preview error, zero there), and a lane change at constant
 //! speed keeps v_x within millimetres per second of it.
 
-use arena_sim::{DriverParams, LANE_CHANGE_BOUNDS, Style, lateral_modes};
+use arena_sim::analysis::{LANE_CHANGE_BOUNDS, lateral_modes};
+use arena_sim::{DriverParams, Style};
 
 /// Issue 23's bound on every lateral mode's real part (1/s).
 const BOUND: f64 = -0.02;

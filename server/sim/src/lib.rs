@@ -20,15 +20,13 @@ mod world;
 // The surface, by the module that owns each item. What is not here stays inside: the
 // games, the field, the MPC's matrices, the integrator, IDM/MOBIL's internals.
 pub use dynamics::{
-    Command, DriverParams, JerkSummary, LANE_CHANGE_BOUNDS, LANE_CHANGE_DURATION, LaneChangeBounds, LaneChangeResponse,
-    LateralPath, MAX_STATE_MAGNITUDE, RK4_CHECK_SPEEDS, Style, VehicleParams, VehicleState, commanded_jerk,
-    cruising_modes, lane_change_response, lane_change_trajectory, lateral_modes, longitudinal_jerk, rk4_growth,
+    Command, DriverParams, LANE_CHANGE_DURATION, LateralPath, MAX_STATE_MAGNITUDE, Style, VehicleParams, VehicleState,
 };
 pub use gt::{
     AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, Explanation,
     FieldParams, Game, GameExplained, GameParams, GtDriver, GtParams, GtStep, InteractionParams, JerkParams,
-    Kinematics, MergeParams, Mpc, MpcError, MpcParams, MpcSolution, PredictionParams, SafetyOverride, SafetyParams,
-    SideExplained, StyleProfile, expert_decision, explain, plan, plan_motion, stage_cost,
+    Kinematics, MergeParams, MpcParams, PredictionParams, SafetyOverride, SafetyParams, SideExplained, StyleProfile,
+    expert_decision, explain, plan, stage_cost,
 };
 pub use preset::{BUILTIN_PRESETS, Preset, PresetError};
 pub use road::{LaneChange, LaneId, NearbySections, Pose, Road, Section};
@@ -42,5 +40,19 @@ pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 pub use traffic::{IdmParams, speed_control};
 pub use world::{
     AgentCommand, AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver, Ending, LEARNER_SPEED_FACTOR, LaneEntry,
-    RngState, StateError, Vehicle, World, WorldParams, WorldState, beside_decisions,
+    RngState, StateError, Stepper, Vehicle, World, WorldParams, WorldState, beside_decisions, rng_position,
 };
+
+/// The model and the AV's planner taken apart, for the examples and benches that reproduce
+/// the figures of docs/parameters.md, docs/design.md and docs/performance.md: the
+/// linearised model's modes and RK4's growth over a step (eq. 1-8, 23), a lane change's
+/// response and its bounds, jerk figures, and the MPC of eq. (18)-(22) on its own. No
+/// layer above the simulation drives a world with them; they are the crate's surface so
+/// that those figures come from the code the world runs.
+pub mod analysis {
+    pub use crate::dynamics::{
+        JerkSummary, LANE_CHANGE_BOUNDS, LaneChangeBounds, LaneChangeResponse, RK4_CHECK_SPEEDS, commanded_jerk,
+        cruising_modes, lane_change_response, lane_change_trajectory, lateral_modes, longitudinal_jerk, rk4_growth,
+    };
+    pub use crate::gt::{Mpc, MpcError, MpcSolution, plan_motion};
+}

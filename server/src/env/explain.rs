@@ -5,7 +5,7 @@
 //! reset, a world whose explanations would not fit a reply.
 
 use arena_protocol::{DecisionExplained, ErrorCode, ErrorReply, GameTable, GtRole, PathPoint};
-use arena_sim::{Driver, Explanation, Game, Kinematics, Road, Role, SideExplained, World};
+use arena_sim::{Driver, Explanation, Game, Kinematics, Road, Role, SideExplained, Stepper, World};
 
 use super::error;
 
@@ -48,10 +48,10 @@ pub fn check_fits(world: &World, periods: usize) -> Result<(), ErrorReply> {
     Ok(())
 }
 
-/// The world's explanations since the last call, for a step reply.
-pub fn take(world: &mut World) -> Vec<DecisionExplained> {
-    let explanations = world.take_explanations();
-    explanations.iter().map(|e| explained(world.road(), e)).collect()
+/// The stepper's explanations since the last call, for a step reply.
+pub fn take(stepper: &mut Stepper, road: &Road) -> Vec<DecisionExplained> {
+    let explanations = stepper.take_explanations();
+    explanations.iter().map(|e| explained(road, e)).collect()
 }
 
 fn explained(road: &Road, e: &Explanation) -> DecisionExplained {

@@ -34,22 +34,32 @@ use arena_protocol::{
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
 
 use arena_sim::Role;
 use arena_sim::Style;
 use arena_sim::{ActionKind, DriverSpec, Scenario};
 use arena_sim::{Game, GtDriver};
-use arena_sim::{Status, VehicleId, World};
+use arena_sim::{Status, Stepper, VehicleId, World};
 
+/// Where a server runs `Env::decide_ahead` once a reply is on its way: the decision pool's
+/// thread, still warm from the step (`arena_sim::beside_decisions`).
+pub use arena_sim::beside_decisions;
 pub use episode::MAX_AGENT_PERIODS;
 pub use observation::{KINEMATICS_FEATURES, KINEMATICS_VEHICLES};
 
-/// A learner's vehicle.
+/// A learner, as its env was created: its vehicle's name and its action space.
 #[derive(Debug, Clone)]
 struct AgentSlot {
     name: String,
-    vehicle: VehicleId,
     action: ActionType,
+}
+
+/// What changes of a learner as an episode runs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct AgentState {
+    /// Its vehicle in this episode's world.
+    vehicle: VehicleId,
     live: bool,
     /// The memory of the built-in AV planning in this agent's place (its last preview
     /// point and MPC plan), for continuous expert actions.
@@ -62,6 +72,31 @@ struct AgentSlot {
     /// When the AV drives it (`policy`), the target speed a learner playing the meta
     /// labels of `expert_action` would have (m/s); they are chosen against it.
     ladder: f64,
+}
+
+impl AgentState {
+    /// Before its first reset.
+    fn idle() -> AgentState {
+        AgentState { vehicle: VehicleId(0), live: false, expert: None, stats: None, aim: 0.0, ladder: 0.0 }
+    }
+}
+
+/// Everything of an env that changes as it runs but its world (whose state is the
+/// world's own, `arena_sim::WorldState`): plain data, compared and encoded as it is. A
+/// snapshot is this and the world's state, with the scenario's identity.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct EnvState {
+    /// The current episode's world seed and reset overrides: its scenario (its `[vary]`
+    /// draws) and its built world are made again from them.
+    world_seed: u64,
+    overrides: Vec<(String, arena_protocol::OptionValue)>,
+    /// The env's seed stream, for resets without a seed.
+    #[serde(with = "arena_sim::rng_position")]
+    seeds: ChaCha8Rng,
+    /// Steps taken in this episode.
+    cycles: u32,
+    /// Per agent, in the order of `Env::agents`.
+    agents: Vec<AgentState>,
 }
 
 /// A PettingZoo-Parallel env over one scenario.
@@ -82,19 +117,20 @@ pub struct Env {
     /// Whether replies carry the world's frames (`recording`).
     recording: bool,
     recorder: recording::Recorder,
-    seeds: ChaCha8Rng,
     world: Option<World>,
+    /// What advances `world` and is not part of it (arena_sim::Stepper): scratch, the
+    /// decision pool's hand-off, the decisions made ahead, the decision clock and the
+    /// explanations. A new one each episode; dropping it changes no result.
+    stepper: Stepper,
     agents: Vec<AgentSlot>,
-    cycles: u32,
+    /// What changes as an episode runs, but the world.
+    state: EnvState,
     /// Buffers of `step`, kept so a step allocates only what its reply carries.
     scratch: StepScratch,
     /// Whether step replies explain the game-theoretic decisions (`explain`).
     explain: bool,
     /// SHA3-256 of the resolved scenario, which snapshots name (`snapshot`).
     identity: [u8; 32],
-    /// The current episode's world seed and reset overrides, from which a snapshot's
-    /// episode is built again.
-    reset_inputs: (u64, Vec<(String, arena_protocol::OptionValue)>),
     /// Per agent, the server's wall time deciding for it in each step its built-in
     /// `policy` drove it (µs), the newest `EnvStatistics::kept_per_agent`: the
     /// `Statistics` reply, never an info.
@@ -186,22 +222,23 @@ impl Env {
             .agents()
             .map(|spec| AgentSlot {
                 name: spec.name.clone(),
-                // Found in the world at each reset (`Scenario::build` orders vehicles by name).
-                vehicle: VehicleId(0),
                 action: options.action_type.unwrap_or(match spec.driver {
                     DriverSpec::Agent(ActionKind::Continuous) => ActionType::Continuous,
                     _ => ActionType::Meta,
                 }),
-                live: false,
-                expert: None,
-                stats: None,
-                aim: 0.0,
-                ladder: 0.0,
             })
-            .collect();
+            .collect::<Vec<_>>();
+        let state = EnvState {
+            world_seed: 0,
+            overrides: Vec::new(),
+            seeds: ChaCha8Rng::seed_from_u64(entropy),
+            cycles: 0,
+            // Each agent's vehicle is found in the world at each reset (`Scenario::build`
+            // orders vehicles by name).
+            agents: vec![AgentState::idle(); agents.len()],
+        };
         Ok(Env {
             identity: snapshot::identity(&scenario),
-            reset_inputs: (0, Vec::new()),
             decision_micros: Vec::new(),
             episode: scenario.clone(),
             scenario,
@@ -213,10 +250,10 @@ impl Env {
             diagnostics: options.diagnostics,
             recording: options.record,
             recorder: recording::Recorder::default(),
-            seeds: ChaCha8Rng::seed_from_u64(entropy),
             world: None,
+            stepper: Stepper::new(),
             agents,
-            cycles: 0,
+            state,
             scratch: StepScratch::default(),
             explain: options.explain,
         })
@@ -238,7 +275,8 @@ impl Env {
 
     /// Names of the agents live now.
     pub fn live_agents(&self) -> Vec<String> {
-        self.agents.iter().filter(|a| a.live).map(|a| a.name.clone()).collect()
+        let live = self.agents.iter().zip(&self.state.agents).filter(|(_, state)| state.live);
+        live.map(|(agent, _)| agent.name.clone()).collect()
     }
 
     /// Spaces, timing and agents: everything a client needs before `reset`.
@@ -263,7 +301,7 @@ impl Env {
         let overrides = overrides::converted(&options.overrides);
         let mut seeds = match seed {
             Some(seed) => ChaCha8Rng::seed_from_u64(seed),
-            None => self.seeds.clone(),
+            None => self.state.seeds.clone(),
         };
         let world_seed = seeds.next_u64();
         let mut draws = ChaCha8Rng::seed_from_u64(world_seed);
@@ -291,15 +329,18 @@ impl Env {
             recording::check_fits(world.vehicles().len(), frames_per_step(&episode))?;
             self.recorder.restart(&world);
         }
-        self.prepare(&mut world, &episode)?;
-        self.seeds = seeds;
+        if self.explain {
+            explain::check_fits(&world, frames_per_step(&episode) - 1)?;
+        }
+        self.stepper = self.stepper_for_episode();
         self.episode = episode;
-        self.cycles = 0;
-        self.reset_inputs = (world_seed, options.overrides.clone());
         let periods = self.control_periods();
-        for agent in &mut self.agents {
+        let state = &mut self.state;
+        (state.seeds, state.cycles) = (seeds, 0);
+        (state.world_seed, state.overrides) = (world_seed, options.overrides.clone());
+        for (slot, agent) in self.agents.iter().zip(&mut state.agents) {
             agent.live = true;
-            agent.vehicle = world.find(&agent.name).unwrap_or(agent.vehicle);
+            agent.vehicle = world.find(&slot.name).unwrap_or(agent.vehicle);
             agent.expert =
                 self.expert.map(|game| Box::new(GtDriver::new(game, Role::Leader, world.gt_params(agent.vehicle))));
             agent.stats = Some(episode::EpisodeStats::start(&world, agent.vehicle, periods));
@@ -308,7 +349,7 @@ impl Env {
         }
         let starts = (0..self.agents.len())
             .map(|i| {
-                let (vehicle, action) = (self.agents[i].vehicle, self.agents[i].action);
+                let (vehicle, action) = (self.state.agents[i].vehicle, self.agents[i].action);
                 let observation = observation::observe(self.observation, world.scene(), vehicle, action);
                 let info = self.info(&mut world, i, &info::Outcome::start());
                 AgentStart { agent: self.agents[i].name.clone(), observation, info }
@@ -318,15 +359,13 @@ impl Env {
         Ok(starts)
     }
 
-    /// Turns on in a new or restored world what this env's options ask of it: explained
-    /// decisions, and the decision clock when the server drives the learners.
-    fn prepare(&self, world: &mut World, episode: &Scenario) -> Result<(), ErrorReply> {
-        if self.explain {
-            explain::check_fits(world, frames_per_step(episode) - 1)?;
-            world.set_explain(true);
-        }
-        world.clock_decisions(self.policy.is_some());
-        Ok(())
+    /// A stepper for a new or restored episode, with what this env's options ask of it on:
+    /// explained decisions, and the decision clock when the server drives the learners.
+    fn stepper_for_episode(&self) -> Stepper {
+        let mut stepper = Stepper::new();
+        stepper.set_explain(self.explain);
+        stepper.clock_decisions(self.policy.is_some());
+        stepper
     }
 
     /// One env step, in phases: actions are checked (all before any is applied, so a
@@ -343,16 +382,16 @@ impl Env {
         Ok(steps)
     }
 
-    /// Makes the next step's first decisions now (`World::decide_ahead`), while its
+    /// Makes the next step's first decisions now (`Stepper::decide_ahead`), while its
     /// actions are on their way, until `stop` says the next request has come: a server
     /// calls it once a reset's or a step's reply is sent. The next step takes them when
     /// its actions leave the vehicles as they were, and makes them again otherwise; its
     /// results are the same bits either way.
     pub fn decide_ahead(&mut self, stop: &(dyn Fn() -> bool + Sync)) {
-        if self.agents.iter().any(|a| a.live)
-            && let Some(world) = self.world.as_mut()
+        if self.state.agents.iter().any(|a| a.live)
+            && let Some(world) = self.world.as_ref()
         {
-            world.decide_ahead(stop);
+            self.stepper.decide_ahead(world, stop);
         }
     }
 
@@ -363,7 +402,7 @@ impl Env {
         if self.world.is_none() {
             return Err(error(ErrorCode::NotReset, "step before reset: call reset first"));
         }
-        if !self.agents.iter().any(|a| a.live) {
+        if !self.state.agents.iter().any(|a| a.live) {
             return Err(error(ErrorCode::AgentNotLive, "every agent has finished this episode: call reset"));
         }
         let chosen = &mut self.scratch.chosen;
@@ -378,7 +417,7 @@ impl Env {
                 ));
             };
             let agent = &self.agents[index];
-            if !agent.live {
+            if !self.state.agents[index].live {
                 continue;
             }
             if let Some(policy) = self.policy {
@@ -407,20 +446,20 @@ impl Env {
             &mut self.scratch;
         applied.clear();
         applied.resize(self.agents.len(), true);
-        for ((agent, action), applied) in self.agents.iter().zip(chosen.iter()).zip(applied.iter_mut()) {
+        let agents = &self.state.agents;
+        for (((slot, agent), action), applied) in self.agents.iter().zip(agents).zip(chosen.iter()).zip(applied) {
             if agent.live && self.policy.is_none() {
-                *applied = action::apply(world, agent.vehicle, action.as_ref(), agent.action);
+                *applied = action::apply(world, agent.vehicle, action.as_ref(), slot.action);
             }
         }
         live_before.clear();
-        live_before.extend((0..self.agents.len()).filter(|&i| self.agents[i].live));
+        live_before.extend((0..agents.len()).filter(|&i| agents[i].live));
         driving_before.clear();
-        driving_before
-            .extend(live_before.iter().map(|&i| world.vehicle(self.agents[i].vehicle).status == Status::Driving));
+        driving_before.extend(live_before.iter().map(|&i| world.vehicle(agents[i].vehicle).status == Status::Driving));
         reached_before.clear();
-        reached_before.extend(live_before.iter().map(|&i| self.episode.goal.reached(world, self.agents[i].vehicle)));
+        reached_before.extend(live_before.iter().map(|&i| self.episode.goal.reached(world, agents[i].vehicle)));
         vehicles.clear();
-        vehicles.extend(live_before.iter().map(|&i| self.agents[i].vehicle));
+        vehicles.extend(live_before.iter().map(|&i| agents[i].vehicle));
     }
 
     /// While recording, the road, the vehicles and the world now (a reset reply's).
@@ -439,7 +478,7 @@ impl Env {
     /// unless created with `explain`.
     pub fn take_explanations(&mut self) -> Vec<DecisionExplained> {
         match self.world.as_mut() {
-            Some(world) if self.explain => explain::take(world),
+            Some(world) if self.explain => explain::take(&mut self.stepper, world.road()),
             _ => Vec::new(),
         }
     }
@@ -470,17 +509,19 @@ impl Env {
         let StepScratch { vehicles, costs, accels, started, .. } = &mut self.scratch;
         *started = world.time();
         let recorder = self.recording.then_some(&mut self.recorder);
-        simulate::advance(world, vehicles, self.episode.step_dt, costs, accels, recorder);
-        self.cycles += 1;
+        simulate::advance(world, &mut self.stepper, vehicles, self.episode.step_dt, costs, accels, recorder);
+        self.state.cycles += 1;
     }
 
     /// Notes the wall time the server's policy spent on each agent it drove this step.
     fn clock_decisions(&mut self) {
-        let Some(world) = self.world.as_mut().filter(|_| self.policy.is_some()) else { return };
+        if self.world.is_none() || self.policy.is_none() {
+            return;
+        }
         self.decision_micros.resize_with(self.agents.len(), VecDeque::new);
         let cap = EnvStatistics::kept_per_agent(self.agents.len());
         for &i in &self.scratch.live_before {
-            let spent = world.take_decision_time(self.agents[i].vehicle);
+            let spent = self.stepper.take_decision_time(self.state.agents[i].vehicle);
             let kept = &mut self.decision_micros[i];
             if kept.len() >= cap {
                 kept.pop_front();
@@ -504,9 +545,9 @@ impl Env {
     fn agent_step(&mut self, world: &mut World, k: usize) -> AgentStep {
         let i = self.scratch.live_before[k];
         let cost = self.scratch.costs[k];
-        let truncated = self.cycles >= self.max_cycles;
+        let truncated = self.state.cycles >= self.max_cycles;
         let periods = self.control_periods();
-        let agent = &mut self.agents[i];
+        let (action, agent) = (self.agents[i].action, &mut self.state.agents[i]);
         let vehicle = world.vehicle(agent.vehicle);
         let crashed_now = self.scratch.driving_before[k] && matches!(vehicle.status, Status::Crashed | Status::OffRoad);
         let ended = episode::ended(world, agent.vehicle);
@@ -524,12 +565,11 @@ impl Env {
             end => stats.finish(world, agent.vehicle, &self.episode.goal, end),
         };
         agent.live = end == EndReason::Running;
-        let observation = observation::observe(self.observation, world.scene(), agent.vehicle, agent.action);
+        let observation = observation::observe(self.observation, world.scene(), agent.vehicle, action);
         let outcome = info::Outcome { cost: Some(&cost), applied: self.scratch.applied[i], end, figures };
         let info = self.info(world, i, &outcome);
-        let agent = &self.agents[i];
         AgentStep {
-            agent: agent.name.clone(),
+            agent: self.agents[i].name.clone(),
             observation,
             reward,
             terminated: ended.is_some(),
@@ -540,12 +580,12 @@ impl Env {
 
     /// Agent `i`'s info: the schema's keys, then those the env's options turn on.
     fn info(&mut self, world: &mut World, i: usize, outcome: &info::Outcome) -> arena_protocol::Info {
-        let agent = &mut self.agents[i];
+        let (action, agent) = (self.agents[i].action, &mut self.state.agents[i]);
         let mut info = info::info(world, agent.vehicle, outcome);
         if let Some(memory) = agent.expert.as_mut() {
             let running = outcome.end == EndReason::Running;
-            let expert = running.then(|| info::expert(world, agent.vehicle, agent.action, memory, &mut agent.ladder));
-            info::add_expert(&mut info, agent.action, expert);
+            let expert = running.then(|| info::expert(world, agent.vehicle, action, memory, &mut agent.ladder));
+            info::add_expert(&mut info, action, expert);
         }
         if self.diagnostics {
             info::add_diagnostics(&mut info, world);
@@ -567,7 +607,7 @@ impl Env {
             self.world.as_ref().ok_or_else(|| error(ErrorCode::NotReset, "render before reset: call reset first"))?;
         let focus = match follow {
             Some(name) => Some(world.find(name).ok_or_else(|| unknown_vehicle(world, name))?),
-            None => self.agents.first().map(|a| a.vehicle),
+            None => self.state.agents.first().map(|a| a.vehicle),
         };
         Ok(match mode {
             RenderMode::RgbArray => {
@@ -581,7 +621,7 @@ impl Env {
     /// the time limit for an agent no longer live.
     fn end_shown(&self, id: VehicleId) -> Option<&'static str> {
         let world = self.world.as_ref()?;
-        let out_of_time = self.agents.iter().any(|a| a.vehicle == id && !a.live);
+        let out_of_time = self.state.agents.iter().any(|a| a.vehicle == id && !a.live);
         world.ending(id).map(render::ending_name).or(out_of_time.then_some("TIME LIMIT"))
     }
 }

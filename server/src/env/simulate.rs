@@ -5,7 +5,7 @@
 //! a frame of the world at the end of each control period (`recording`).
 
 use arena_sim::CostComponents;
-use arena_sim::{Status, VehicleId, World};
+use arena_sim::{Status, Stepper, VehicleId, World};
 
 use super::recording::Recorder;
 use super::risk;
@@ -35,6 +35,7 @@ pub struct StepCost {
 /// sampled.
 pub fn advance(
     world: &mut World,
+    stepper: &mut Stepper,
     vehicles: &[VehicleId],
     step_dt: f64,
     costs: &mut Vec<StepCost>,
@@ -50,7 +51,7 @@ pub fn advance(
     accels.iter_mut().for_each(Vec::clear);
     let mut samples = 0u32;
     for tick in 0..ticks {
-        world.tick();
+        stepper.tick(world);
         if let Some(recorder) = recorder.as_deref_mut() {
             recorder.after_tick(world);
         }

@@ -16,14 +16,14 @@
 //! decision and fleet buffers, the step's scratch) is not in it: each is rewritten
 //! before it is read, so it does not change results.
 
-use arena_protocol::{AgentStart, ErrorCode, ErrorReply, OptionValue, PROTOCOL_VERSION};
-use arena_sim::{GtDriver, RngState, Role, VehicleId, World, WorldState};
+use arena_protocol::{AgentStart, ErrorCode, ErrorReply, PROTOCOL_VERSION};
+use arena_sim::{GtDriver, Role, World, WorldState};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use sha3::Digest;
 
-use super::{AgentSlot, Env, episode, error, info, observation, overrides, recording};
+use super::{AgentState, Env, EnvState, error, explain, info, observation, overrides, recording};
 use arena_protocol::bounds::MAX_SNAPSHOT_BYTES;
 
 /// The first bytes of every snapshot.
@@ -35,7 +35,8 @@ const HEADER: usize = MAGIC.len() + 2;
 /// Bytes of the checksum after the body.
 const CHECKSUM: usize = 32;
 
-/// What a snapshot holds after its header.
+/// What a snapshot holds after its header: the scenario's identity, the options that
+/// change results, and the env's and its world's state as they are.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 struct Body {
     /// The scenario's name.
@@ -44,27 +45,8 @@ struct Body {
     hash: [u8; 32],
     /// The env options that change results, as `Env::options_text` writes them.
     options: String,
-    /// The current episode's world seed and the reset's overrides: the episode's
-    /// scenario (its `[vary]` draws) and its built world are made again from them.
-    world_seed: u64,
-    overrides: Vec<(String, OptionValue)>,
-    /// The env's seed stream, for resets without a seed.
-    seeds: RngState,
-    cycles: u32,
-    agents: Vec<AgentState>,
+    env: EnvState,
     world: WorldState,
-}
-
-/// One agent's part of a snapshot.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct AgentState {
-    name: String,
-    vehicle: u32,
-    live: bool,
-    expert: Option<GtDriver>,
-    stats: Option<episode::EpisodeStats>,
-    aim: f64,
-    ladder: f64,
 }
 
 fn refused(message: impl Into<String>) -> ErrorReply {
@@ -102,29 +84,12 @@ impl Env {
     pub fn snapshot(&self) -> Result<Vec<u8>, ErrorReply> {
         let world =
             self.world.as_ref().ok_or_else(|| error(ErrorCode::NotReset, "snapshot before reset: call reset first"))?;
-        let agents = self
-            .agents
-            .iter()
-            .map(|a| AgentState {
-                name: a.name.clone(),
-                vehicle: a.vehicle.0,
-                live: a.live,
-                expert: a.expert.as_deref().cloned(),
-                stats: a.stats.clone(),
-                aim: a.aim,
-                ladder: a.ladder,
-            })
-            .collect();
         let body = Body {
             scenario: self.scenario.name.clone(),
             hash: self.identity,
             options: self.options_text(),
-            world_seed: self.reset_inputs.0,
-            overrides: self.reset_inputs.1.clone(),
-            seeds: RngState::of(&self.seeds),
-            cycles: self.cycles,
-            agents,
-            world: world.state(),
+            env: self.state.clone(),
+            world: world.state().clone(),
         };
         let mut bytes = Vec::with_capacity(4096);
         bytes.extend_from_slice(MAGIC);
@@ -151,72 +116,68 @@ impl Env {
     /// another protocol version, scenario or options, or does not fit is refused with
     /// `InvalidSnapshot` naming what, and the env stays as it was.
     pub fn restore(&mut self, bytes: &[u8]) -> Result<Vec<AgentStart>, ErrorReply> {
-        let body = self.read(bytes)?;
-        let Body { world_seed, overrides: reset_overrides, seeds, cycles, agents: states, world: state, .. } = body;
-        arena_protocol::bounds::check_reset_overrides(&reset_overrides)
+        let Body { env: state, world: world_state, .. } = self.read(bytes)?;
+        arena_protocol::bounds::check_reset_overrides(&state.overrides)
             .map_err(|e| refused(format!("the snapshot's episode: {e}")))?;
-        if cycles > self.max_cycles {
+        if state.cycles > self.max_cycles {
             return Err(refused(format!(
-                "the snapshot's episode has taken {cycles} steps, more than this env's max_cycles {}",
-                self.max_cycles
+                "the snapshot's episode has taken {} steps, more than this env's max_cycles {}",
+                state.cycles, self.max_cycles
             )));
         }
-        let mut draws = ChaCha8Rng::seed_from_u64(world_seed);
+        let mut draws = ChaCha8Rng::seed_from_u64(state.world_seed);
         let mut episode = self
             .scenario
-            .episode(&mut draws, &overrides::converted(&reset_overrides))
+            .episode(&mut draws, &overrides::converted(&state.overrides))
             .map_err(|e| refused(format!("the snapshot's episode does not build: {e}")))?;
         if let Some(policy) = self.policy {
             super::drive_learners(&mut episode, policy);
         }
-        let mut world = episode.build(world_seed);
-        world.restore(state).map_err(|e| refused(format!("snapshot of scenario '{}': {e}", self.scenario.name)))?;
-        if states.len() != self.agents.len() {
-            return Err(refused(format!("the snapshot has {} agents, this env {}", states.len(), self.agents.len())));
+        let mut world = episode.build(state.world_seed);
+        world
+            .restore(world_state)
+            .map_err(|e| refused(format!("snapshot of scenario '{}': {e}", self.scenario.name)))?;
+        if state.agents.len() != self.agents.len() {
+            return Err(refused(format!(
+                "the snapshot has {} agents, this env {}",
+                state.agents.len(),
+                self.agents.len()
+            )));
         }
-        let mut agents: Vec<AgentSlot> = self.agents.clone();
-        for (agent, state) in agents.iter_mut().zip(states) {
-            let vehicle = world.find(&agent.name);
-            if state.name != agent.name || vehicle != Some(VehicleId(state.vehicle)) {
+        for (slot, agent) in self.agents.iter().zip(&state.agents) {
+            if world.find(&slot.name) != Some(agent.vehicle) {
                 return Err(refused(format!(
-                    "the snapshot's agent '{}' (vehicle {}) is not this env's '{}'",
-                    state.name, state.vehicle, agent.name
+                    "the snapshot's agent vehicle {} is not this env's '{}'",
+                    agent.vehicle.0, slot.name
                 )));
             }
-            let like =
-                self.expert.map(|game| GtDriver::new(game, Role::Leader, world.gt_params(VehicleId(state.vehicle))));
-            self.check_agent(&world, &episode, cycles, &state, like.as_ref())
-                .map_err(|e| refused(format!("the snapshot's agent '{}': {e}", agent.name)))?;
-            agent.vehicle = VehicleId(state.vehicle);
-            agent.live = state.live;
-            agent.expert = state.expert.map(Box::new);
-            agent.stats = state.stats;
-            agent.aim = state.aim;
-            agent.ladder = state.ladder;
+            let like = self.expert.map(|game| GtDriver::new(game, Role::Leader, world.gt_params(agent.vehicle)));
+            self.check_agent(&world, &episode, state.cycles, agent, like.as_ref())
+                .map_err(|e| refused(format!("the snapshot's agent '{}': {e}", slot.name)))?;
         }
         if self.recording {
             recording::check_fits(world.vehicles().len(), super::frames_per_step(&episode))?;
         }
-        self.prepare(&mut world, &episode)?;
+        if self.explain {
+            explain::check_fits(&world, super::frames_per_step(&episode) - 1)?;
+        }
         if self.recording {
             self.recorder.restart(&world);
         }
-        self.seeds = seeds.rng();
+        self.stepper = self.stepper_for_episode();
         self.episode = episode;
-        self.cycles = cycles;
-        self.agents = agents;
-        self.reset_inputs = (world_seed, reset_overrides);
-        let live: Vec<usize> = (0..self.agents.len()).filter(|&i| self.agents[i].live).collect();
+        self.state = state;
+        let live: Vec<usize> = (0..self.agents.len()).filter(|&i| self.state.agents[i].live).collect();
         let starts = live
             .into_iter()
             .map(|i| {
-                let (vehicle, action) = (self.agents[i].vehicle, self.agents[i].action);
+                let (vehicle, action) = (self.state.agents[i].vehicle, self.agents[i].action);
                 let observation = observation::observe(self.observation, world.scene(), vehicle, action);
                 // The expert's memory and ladder move when its info is computed: kept as
                 // they were, so the restored env steps as the original.
-                let kept = (self.agents[i].expert.clone(), self.agents[i].ladder);
+                let kept = self.state.agents[i].clone();
                 let info = self.info(&mut world, i, &info::Outcome::start());
-                (self.agents[i].expert, self.agents[i].ladder) = kept;
+                self.state.agents[i] = kept;
                 AgentStart { agent: self.agents[i].name.clone(), observation, info }
             })
             .collect();
@@ -274,7 +235,8 @@ impl Env {
         };
         if sha3::Sha3_256::digest(&bytes[..split])[..] != bytes[split..] {
             return Err(refused(format!(
-                "the snapshot ({} bytes) is truncated or corrupted: its checksum does not match its contents; pass                  the bytes `snapshot` returned, unchanged",
+                "the snapshot ({} bytes) is truncated or corrupted: its checksum does not match its contents; pass \
+                 the bytes `snapshot` returned, unchanged",
                 bytes.len()
             )));
         }
@@ -332,11 +294,11 @@ mod tests {
     }
 
     fn expert(body: &mut Body) -> &mut GtDriver {
-        body.agents[0].expert.as_mut().expect("an env with an expert")
+        body.env.agents[0].expert.as_mut().expect("an env with an expert")
     }
 
-    fn stats(body: &mut Body) -> &mut episode::EpisodeStats {
-        body.agents[0].stats.as_mut().expect("figures after five steps")
+    fn stats(body: &mut Body) -> &mut super::super::episode::EpisodeStats {
+        body.env.agents[0].stats.as_mut().expect("figures after five steps")
     }
 
     #[test]
@@ -358,10 +320,13 @@ mod tests {
             ("no size", Box::new(|b| stats(b).min_ttc = f64::NEG_INFINITY)),
             ("jerks", Box::new(|b| stats(b).jerks = vec![1.0; 10_000])),
             ("not a finite size", Box::new(|b| stats(b).jerks[0] = f64::NAN)),
-            ("speeds", Box::new(|b| b.agents[0].aim = f64::NAN)),
-            ("reset override list", Box::new(|b| b.overrides = vec![("k".into(), OptionValue::Bool(true)); 200_000])),
-            ("reset override key", Box::new(|b| b.overrides = vec![("k".repeat(1 << 20), OptionValue::Int(1))])),
-            ("max_cycles", Box::new(|b| b.cycles = u32::MAX)),
+            ("speeds", Box::new(|b| b.env.agents[0].aim = f64::NAN)),
+            (
+                "reset override list",
+                Box::new(|b| b.env.overrides = vec![("k".into(), OptionValue::Bool(true)); 200_000]),
+            ),
+            ("reset override key", Box::new(|b| b.env.overrides = vec![("k".repeat(1 << 20), OptionValue::Int(1))])),
+            ("max_cycles", Box::new(|b| b.env.cycles = u32::MAX)),
         ];
         for (needle, spoil) in cases {
             let bytes = forged(&snapshot, spoil);

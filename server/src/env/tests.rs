@@ -134,7 +134,7 @@ fn an_override_at_creation_and_the_same_at_reset_give_the_same_episode() {
 fn bad_actions_are_refused_without_stepping() {
     let mut env = env("merge", CreateOptions::default());
     env.reset(Some(0), NO_OPTIONS).unwrap();
-    let before = env.world().unwrap().clone();
+    let before = env.world().unwrap().state().clone();
     let refuse = |env: &mut Env, actions: Vec<(String, Action)>| env.step(&actions).unwrap_err().code;
     assert_eq!(refuse(&mut env, meta("nobody", 1)), ErrorCode::UnknownAgent);
     assert_eq!(refuse(&mut env, meta("ec_0", 5)), ErrorCode::InvalidAction);
@@ -142,7 +142,7 @@ fn bad_actions_are_refused_without_stepping() {
     let mut twice = meta("ec_0", 1);
     twice.extend(meta("ec_0", 2));
     assert_eq!(refuse(&mut env, twice), ErrorCode::InvalidAction);
-    assert_eq!(env.world().unwrap(), &before);
+    assert_eq!(env.world().unwrap().state(), &before);
 
     let mut continuous = super::Env::new(
         builtin_scenario("merge").unwrap().unwrap(),
@@ -169,6 +169,48 @@ fn same_seed_same_bits_other_seed_differs() {
     };
     assert_eq!(run(4), run(4));
     assert_ne!(run(4), run(5));
+}
+
+#[test]
+fn a_stepper_dropped_and_built_again_mid_episode_changes_no_bit() {
+    // Every shipped scenario with a learner, with an expert, explanations and solver
+    // counts on; the stepper is dropped before every step, after it made decisions ahead
+    // (every second step) that go with it.
+    let options = CreateOptions {
+        expert: Some(arena_protocol::Game::Stackelberg),
+        diagnostics: true,
+        explain: true,
+        ..Default::default()
+    };
+    let (mut tested, mut steps) = (Vec::new(), 0);
+    for (name, file, text) in arena_sim::BUILTIN_SCENARIOS {
+        let Ok(mut reference) = Env::from_text(file, text, &options, 1) else { continue };
+        tested.push(name);
+        let mut fresh = reference.clone();
+        let learners = reference.agents.iter().map(|a| a.name.clone()).collect::<Vec<_>>();
+        let mut replies =
+            [&mut reference, &mut fresh].map(|env| format!("{:?}", env.reset(Some(7), NO_OPTIONS).unwrap()));
+        assert_eq!(replies[0], replies[1], "{name}: reset");
+        for k in 0..20u32 {
+            if reference.live_agents().is_empty() {
+                break;
+            }
+            steps += 1;
+            let actions: Vec<(String, Action)> =
+                learners.iter().flat_map(|learner| meta(learner, (k / 3) % 5)).collect();
+            if k % 2 == 0 {
+                fresh.decide_ahead(&|| false);
+            }
+            fresh.stepper = fresh.stepper_for_episode();
+            for (env, reply) in [&mut reference, &mut fresh].into_iter().zip(&mut replies) {
+                *reply = format!("{:?} {:?}", env.step(&actions).unwrap(), env.take_explanations());
+            }
+            assert_eq!(replies[0], replies[1], "{name}: step {k}");
+        }
+        assert!(reference.state == fresh.state, "{name}: the envs' states parted");
+        assert!(reference.world().unwrap().state() == fresh.world().unwrap().state(), "{name}: the worlds parted");
+    }
+    assert!(tested.len() >= 6 && steps >= 100, "only {tested:?} have a learner, stepped {steps} times");
 }
 
 fn info<'a>(step: &'a AgentStep, key: &str) -> Option<&'a InfoValue> {
@@ -832,7 +874,7 @@ fn when_the_av_drives_the_expert_keys_are_what_it_does_next() {
             // One control period a step in merge-random: the period just run applied the
             // command the reply before had labelled.
             let world = env.world().unwrap();
-            let id = env.agents[0].vehicle;
+            let id = env.state.agents[0].vehicle;
             let arena_sim::Driver::Gt(driving) = &world.vehicle(id).driver else { panic!("the AV drives ec_0") };
             assert_eq!(driving.decision.accel.to_bits(), accel.to_bits(), "{action_type:?} step {steps}");
             assert_eq!(i64::from(driving.decision.lane_change.sigma()), sigma, "{action_type:?} step {steps}");

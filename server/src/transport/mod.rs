@@ -114,7 +114,7 @@ impl Server {
                     // stops them.
                     if let Some(ahead) = ahead {
                         let registry = Arc::clone(&handler);
-                        arena_sim::beside_decisions(move || registry.decide_ahead(ahead));
+                        crate::env::beside_decisions(move || registry.decide_ahead(ahead));
                     }
                 });
             })

@@ -1,18 +1,18 @@
 //! Many vehicles stepped together: their states, inputs and constants held in blocks of
 //! `BLOCK` vehicles, one array of `BLOCK` numbers per quantity (structure of arrays), and
-//! each block advanced at once by the same RK4 of eq. (1)-(8) that `Stepper` runs for
+//! each block advanced at once by the same RK4 of eq. (1)-(8) that `VehicleStep` runs for
 //! one vehicle. The block step is compiled for AVX-512, AVX2 and SSE4.1 and the widest
 //! the machine has is picked at run time (`multiversion`), so one release binary runs on
 //! any x86-64.
 //!
-//! Each vehicle's result is the same bits as `Stepper::step` gives it alone: the model is
+//! Each vehicle's result is the same bits as `VehicleStep::step` gives it alone: the model is
 //! written once over `Lanes`, whose operations are lane-wise IEEE-754 arithmetic with no
 //! fused multiply-add, so neither the block width, nor the vector width, nor which
 //! vehicles share a block changes a bit (tests below check every width on this machine).
 
 use multiversion::multiversion;
 
-use super::integrate::{Stepper, step_lanes};
+use super::integrate::{VehicleStep, step_lanes};
 use super::lanes::Lanes;
 use super::model::{Inputs, Model};
 use super::state::{Command, StateLanes, VehicleState};
@@ -51,7 +51,7 @@ impl Fleet {
     /// dt) under `command` on a lane of `curvature`. `key` names the stepper: a slot
     /// whose last vehicle had the same key keeps its constants, so a caller gives each
     /// distinct stepper a distinct key and a changed stepper a new one.
-    pub fn push(&mut self, key: u64, stepper: &Stepper, state: &VehicleState, command: Command, curvature: f64) {
+    pub fn push(&mut self, key: u64, stepper: &VehicleStep, state: &VehicleState, command: Command, curvature: f64) {
         let (index, lane) = (self.len / BLOCK, self.len % BLOCK);
         if index == self.blocks.len() {
             // A new block: every lane a copy of this vehicle until others take them.
@@ -167,13 +167,13 @@ mod tests {
     /// 203 vehicles (not a multiple of any block) of every style, from a standstill to
     /// 40 m/s, with headings and steering beyond the series' range and at the lock, on
     /// straight lanes and arcs.
-    fn mixed_fleet() -> (Fleet, Vec<(Stepper, VehicleState, Command, f64)>) {
+    fn mixed_fleet() -> (Fleet, Vec<(VehicleStep, VehicleState, Command, f64)>) {
         let mut rng = ChaCha8Rng::seed_from_u64(7);
         let mut fleet = Fleet::default();
         let mut alone = Vec::new();
         for i in 0..203 {
             let driver = DriverParams::for_style(Style::ALL[i % 3]);
-            let stepper = Stepper::new(&VehicleParams::default(), &driver, 1.0 / 30.0);
+            let stepper = VehicleStep::new(&VehicleParams::default(), &driver, 1.0 / 30.0);
             let state = VehicleState {
                 vx: rng.random_range(-0.5..40.0),
                 vy: rng.random_range(-2.0..2.0),

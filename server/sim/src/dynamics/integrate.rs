@@ -1,6 +1,6 @@
 //! Fixed-step integration of eq. (7)-(8): the classical RK4 step for any right-hand side,
 //! the closed loop's step with the limits the model leaves out (no reversing, the
-//! steering lock), and `Stepper`, that step with its constants prepared once. `Fleet`
+//! steering lock), and `VehicleStep`, that step with its constants prepared once. `Fleet`
 //! runs the same `step_lanes` on blocks of vehicles.
 
 use std::ops::{Add, Mul};
@@ -99,21 +99,21 @@ pub fn step(
     vehicle: &VehicleParams,
     driver: &DriverParams,
 ) -> VehicleState {
-    Stepper::new(vehicle, driver, dt).step(state, command, curvature)
+    VehicleStep::new(vehicle, driver, dt).step(state, command, curvature)
 }
 
 /// `step` with the constants of f prepared once, for a world that steps many vehicles
 /// of the same kind every tick (`Fleet` steps them in blocks).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Stepper {
+pub struct VehicleStep {
     pub(super) model: Model<1>,
     pub(super) dt: f64,
 }
 
-impl Stepper {
+impl VehicleStep {
     /// Prepares the step of a `vehicle` with `driver` over `dt`.
-    pub fn new(vehicle: &VehicleParams, driver: &DriverParams, dt: f64) -> Stepper {
-        Stepper { model: Model::new(vehicle, driver), dt }
+    pub fn new(vehicle: &VehicleParams, driver: &DriverParams, dt: f64) -> VehicleStep {
+        VehicleStep { model: Model::new(vehicle, driver), dt }
     }
 
     /// One RK4 step of eq. (7)-(8).

@@ -9,7 +9,7 @@
 //! global Y axis (docs/design.md, "Frenet frame").
 //!
 //! One concern a file: `params` (Tables I and II), `state` (x and u of eq. 7-8), `model`
-//! (f(x, u), eq. 1-8, written once over `lanes::Lanes`), `integrate` (RK4 and `Stepper`),
+//! (f(x, u), eq. 1-8, written once over `lanes::Lanes`), `integrate` (RK4 and `VehicleStep`),
 //! `fleet` (many vehicles a block at a time, the same bits), `linear` (eq. 22-24 for the
 //! MPC), `path` (the quintic lateral path drivers preview), `physics_step` (what a
 //! physics step must do well: settle a lane change, keep RK4 stable), and `jerk` (the
@@ -27,7 +27,7 @@ mod physics_step;
 mod state;
 
 pub use fleet::Fleet;
-pub use integrate::Stepper;
+pub use integrate::VehicleStep;
 #[cfg(test)]
 pub(crate) use integrate::{rk4, step};
 pub use jerk::{JerkSummary, commanded_jerk, longitudinal_jerk};

@@ -5,7 +5,7 @@
 
 use nalgebra::SMatrix;
 
-use super::integrate::Stepper;
+use super::integrate::VehicleStep;
 use super::model::derivative;
 use super::params::{DriverParams, Style, VehicleParams};
 use super::path::{LANE_CHANGE_DURATION, LateralPath};
@@ -153,7 +153,7 @@ pub fn lane_change_trajectory_of(
 ) -> Vec<VehicleState> {
     let vehicle = VehicleParams::default();
     let path = LateralPath { from: 0.0, to: width, start: 0.0, duration: path_duration };
-    let stepper = Stepper::new(&vehicle, driver, dt);
+    let stepper = VehicleStep::new(&vehicle, driver, dt);
     let mut state = VehicleState::cruising(0.0, 0.0, speed);
     let steps = (horizon / dt).round() as usize;
     (0..steps)

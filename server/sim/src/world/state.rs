@@ -1,10 +1,11 @@
-//! A world's changing state as plain data (`WorldState`), for env snapshots: every
-//! vehicle (its driver's memory included), the clock, the scene drivers last read, the
-//! collisions so far, the sorted order and the RNG's position. What a scenario fixes
-//! (road, bodies, timing, IDM constants, each vehicle's prepared physics step) is not in
-//! it: a state is restored onto a world freshly built from the same episode, and checked
-//! against it. Scratch (the decisions buffer, the fleet's blocks) is not state: it is
-//! rewritten before it is read in every tick.
+//! A world's changing state as plain data (`WorldState`): every vehicle (its driver's
+//! memory included), the simulated clock, the collisions so far, the sorted order and the
+//! RNG. A `World` holds one and a snapshot is its encoding; equality, copies and serde are
+//! derived, so they compare and carry exactly that. What a scenario fixes (road, bodies,
+//! timing, IDM constants, each vehicle's prepared physics step) is not in it, nor is the
+//! scene drivers read (taken from the vehicles when it is read) or anything of the
+//! `Stepper`: a state is restored onto a world freshly built from the same episode, and
+//! checked against it.
 
 use std::fmt;
 
@@ -15,20 +16,69 @@ use serde::{Deserialize, Serialize};
 use super::{AgentCommand, Collision, Driver, Vehicle, World};
 use crate::dynamics::within_state;
 use crate::road::LaneId;
-use crate::scene::{Car, DriverKind};
 
 /// Everything of a `World` that changes as it runs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct WorldState {
-    vehicles: Vec<Vehicle>,
-    time: f64,
-    ticks: u64,
-    scene_tick: Option<u64>,
-    scene_time: f64,
-    scene_cars: Vec<Car>,
-    collisions: Vec<Collision>,
-    rng: RngState,
-    order: Vec<u32>,
+    /// Every vehicle, indexed by `VehicleId`.
+    pub(super) vehicles: Vec<Vehicle>,
+    /// Simulated time (s): `ticks` physics steps.
+    pub(super) time: f64,
+    pub(super) ticks: u64,
+    pub(super) collisions: Vec<Collision>,
+    /// The world's only source of randomness, seeded at creation.
+    #[serde(with = "rng_position")]
+    pub(super) rng: ChaCha8Rng,
+    /// Vehicles by s, kept sorted every tick for the collision sweep.
+    pub(super) order: Vec<u32>,
+}
+
+impl WorldState {
+    /// No vehicles yet, at time zero, the randomness seeded with `seed`.
+    pub(super) fn new(seed: u64) -> WorldState {
+        WorldState {
+            vehicles: Vec::new(),
+            time: 0.0,
+            ticks: 0,
+            collisions: Vec::new(),
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            order: Vec::new(),
+        }
+    }
+
+    /// Keeps `order` sorted by s: insertion sort, O(n) on the nearly sorted order of the
+    /// last tick. `positions` is filled with each vehicle's s by id.
+    pub(super) fn sort_along_road(&mut self, positions: &mut Vec<f64>) {
+        positions.clear();
+        positions.extend(self.vehicles.iter().map(|vehicle| vehicle.state.s));
+        let order = &mut self.order;
+        for i in 1..order.len() {
+            let mut j = i;
+            while j > 0 && positions[order[j - 1] as usize] > positions[order[j] as usize] {
+                order.swap(j - 1, j);
+                j -= 1;
+            }
+        }
+    }
+}
+
+/// A ChaCha8 generator as serde carries it (`#[serde(with = "arena_sim::rng_position")]`):
+/// its position (`RngState`), which reads back to a generator that draws the same numbers.
+pub mod rng_position {
+    use rand_chacha::ChaCha8Rng;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    use super::RngState;
+
+    /// Writes `rng`'s position.
+    pub fn serialize<S: Serializer>(rng: &ChaCha8Rng, serializer: S) -> Result<S::Ok, S::Error> {
+        RngState::of(rng).serialize(serializer)
+    }
+
+    /// A generator at the position read.
+    pub fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<ChaCha8Rng, D::Error> {
+        RngState::deserialize(deserializer).map(|position| position.rng())
+    }
 }
 
 /// A ChaCha8 generator's position: its seed, stream and word.
@@ -75,18 +125,8 @@ fn invalid(what: impl Into<String>) -> StateError {
 
 impl World {
     /// The world's changing state, to restore later with `restore`.
-    pub fn state(&self) -> WorldState {
-        WorldState {
-            vehicles: self.vehicles.clone(),
-            time: self.time,
-            ticks: self.ticks,
-            scene_tick: self.scene_tick,
-            scene_time: self.scene.time,
-            scene_cars: self.scene.cars().to_vec(),
-            collisions: self.collisions.clone(),
-            rng: RngState::of(&self.rng),
-            order: self.order.clone(),
-        }
+    pub fn state(&self) -> &WorldState {
+        &self.state
     }
 
     /// Puts `state` into this world, which must have been built from the same episode
@@ -96,36 +136,23 @@ impl World {
     /// and the world is left as it was.
     pub fn restore(&mut self, state: WorldState) -> Result<(), StateError> {
         self.check(&state)?;
-        let WorldState { vehicles, time, ticks, scene_tick, scene_time, scene_cars, collisions, rng, order } = state;
-        self.vehicles = vehicles;
-        self.time = time;
-        self.ticks = ticks;
-        self.collisions = collisions;
-        self.rng = rng.rng();
-        self.order = order;
-        self.positions.clear();
-        self.positions.extend(self.vehicles.iter().map(|vehicle| vehicle.state.s));
-        // The index is rebuilt from the cars exactly as it was built from them (each car's
-        // lane found again from its position, which gives the lane it has).
-        self.scene.refresh(scene_time, scene_cars.into_iter());
-        self.scene_tick = scene_tick;
-        self.ahead = super::Ahead::default();
+        self.state = state;
+        self.scene_taken = None;
         Ok(())
     }
 
     fn check(&self, state: &WorldState) -> Result<(), StateError> {
-        let n = self.vehicles.len();
-        if state.vehicles.len() != n || state.scene_cars.len() != n || state.order.len() != n {
+        let n = self.state.vehicles.len();
+        if state.vehicles.len() != n || state.order.len() != n {
             return Err(invalid(format!(
-                "{} vehicles, {} scene cars and {} sorted places, where this world has {n} vehicles",
+                "{} vehicles and {} sorted places, where this world has {n} vehicles",
                 state.vehicles.len(),
-                state.scene_cars.len(),
                 state.order.len()
             )));
         }
         let lanes = self.road().lane_count();
         let lane_ok = |lane: LaneId| (lane.0 as usize) < lanes;
-        for (index, (ours, theirs)) in self.vehicles.iter().zip(&state.vehicles).enumerate() {
+        for (index, (ours, theirs)) in self.state.vehicles.iter().zip(&state.vehicles).enumerate() {
             let at = || format!("vehicle {index} ('{}')", ours.name);
             if theirs.name != ours.name || theirs.style != ours.style || theirs.driver_params != ours.driver_params {
                 return Err(invalid(format!(
@@ -152,25 +179,6 @@ impl World {
                     at()
                 )));
             }
-            let car = &state.scene_cars[index];
-            if !car_numbers(car).all(within_state) {
-                return Err(invalid(format!(
-                    "scene car {index}: a number that is not finite, or past MAX_STATE_MAGNITUDE"
-                )));
-            }
-            let kind_matches = matches!(
-                (car.driver, &ours.driver),
-                (DriverKind::Agent, Driver::Agent(_))
-                    | (DriverKind::Idm, Driver::Idm)
-                    | (DriverKind::Gt(_), Driver::Gt(_))
-            );
-            if car.id.0 as usize != index || !lane_ok(car.lane) || !lane_ok(car.target_lane) || !kind_matches {
-                return Err(invalid(format!("scene car {index}: another id, driver or a lane the road does not have")));
-            }
-            // The gt cars' MPC reads a car's constants from the scene, not from its vehicle.
-            if car.style != ours.style || car.driver_params != ours.driver_params {
-                return Err(invalid(format!("scene car {index}: driver constants other than its vehicle's")));
-            }
         }
         let mut seen = vec![false; n];
         for &place in &state.order {
@@ -188,9 +196,6 @@ impl World {
                 "time {} s after {} ticks of {} s",
                 state.time, state.ticks, self.params.physics_dt
             )));
-        }
-        if state.scene_tick.is_some_and(|tick| tick > state.ticks) {
-            return Err(invalid("a scene taken after the world's last tick"));
         }
         Ok(())
     }
@@ -222,12 +227,6 @@ fn vehicle_numbers(vehicle: &Vehicle) -> impl Iterator<Item = f64> + '_ {
     vehicle.state.to_array().into_iter().chain(own).chain(vehicle.ramp_from).chain(lane_entry).chain(driver)
 }
 
-/// Every number of a car in the scene drivers read.
-fn car_numbers(car: &Car) -> impl Iterator<Item = f64> + '_ {
-    let own = [car.target_speed, car.accel, car.preview];
-    car.state.to_array().into_iter().chain(own).chain(car.decided.map(|(accel, _)| accel))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -244,7 +243,7 @@ mod tests {
         for name in ["highway-gt", "merge-random"] {
             let mut original = advanced(name, 3.0);
             let mut restored = builtin_scenario(name).unwrap().unwrap().build(99);
-            restored.restore(original.state()).unwrap();
+            restored.restore(original.state().clone()).unwrap();
             assert!(restored.state() == original.state(), "{name}");
             original.advance(4.0);
             restored.advance(4.0);
@@ -263,7 +262,7 @@ mod tests {
     #[test]
     fn a_state_that_does_not_fit_is_refused_and_the_world_left_as_it_was() {
         let world = advanced("merge-random", 1.0);
-        let good = world.state();
+        let good = world.state().clone();
         type Spoil = Box<dyn Fn(&mut WorldState)>;
         let cases: Vec<(&str, Spoil)> = vec![
             ("vehicles", Box::new(|s| drop(s.vehicles.pop()))),
@@ -293,16 +292,14 @@ mod tests {
             ("a plan of 11 moves", Box::new(|s| first_gt(s).plan = vec![0.0; 11])),
             // Finite but past what the dynamics stay finite with (the restore fuzz target).
             ("MAX_STATE_MAGNITUDE", Box::new(|s| s.vehicles[0].state.vx = 1e180)),
-            ("MAX_STATE_MAGNITUDE", Box::new(|s| s.scene_cars[1].state.heading = -4e228)),
+            ("MAX_STATE_MAGNITUDE", Box::new(|s| s.vehicles[1].state.heading = -4e228)),
             ("MAX_STATE_MAGNITUDE", Box::new(|s| first_gt(s).preview = Some(1e10))),
             ("other constants", Box::new(|s| first_gt(s).params.decision.game.accel_step = 1e-300)),
             ("other constants", Box::new(|s| first_gt(s).params.decision.prediction.samples = 1 << 40)),
-            ("scene car 1: a number", Box::new(|s| s.scene_cars[1].state.vx = f64::INFINITY)),
-            ("scene car 1", Box::new(|s| s.scene_cars[1].lane = LaneId(40))),
-            // Constants the gt cars' MPC reads from the scene (found by the `restore` fuzz
-            // target: a NaN v_ref and a K_0 of 4e228 were taken).
-            ("scene car 1: driver constants", Box::new(|s| s.scene_cars[1].driver_params.reference_speed = f64::NAN)),
-            ("scene car 0: driver constants", Box::new(|s| s.scene_cars[0].driver_params.steering_ratio = 4e228)),
+            // Constants the gt cars' MPC reads (found by the `restore` fuzz target when the
+            // scene was part of a state: a NaN v_ref and a K_0 of 4e228 were taken).
+            ("other constants", Box::new(|s| s.vehicles[1].driver_params.reference_speed = f64::NAN)),
+            ("other constants", Box::new(|s| s.vehicles[0].driver_params.steering_ratio = 4e228)),
             ("sorted order", Box::new(|s| s.order[0] = s.order[1])),
             (
                 "collision of vehicles",
@@ -315,16 +312,15 @@ mod tests {
                 }),
             ),
             ("time", Box::new(|s| s.time += 1.0)),
-            ("scene taken after", Box::new(|s| s.scene_tick = Some(s.ticks + 1))),
         ];
         for (needle, spoil) in cases {
             let mut bad = good.clone();
             spoil(&mut bad);
             let mut target = advanced("merge-random", 2.0);
-            let before = target.state();
+            let before = target.state().clone();
             let error = target.restore(bad).unwrap_err().to_string();
             assert!(error.contains(needle), "'{needle}' not in: {error}");
-            assert!(target.state() == before, "{needle}: a refused state changed the world");
+            assert!(*target.state() == before, "{needle}: a refused state changed the world");
         }
     }
 }

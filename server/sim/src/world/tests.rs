@@ -1,3 +1,5 @@
+use std::sync::atomic::AtomicUsize;
+
 use super::*;
 use crate::scenario::{Scenario, builtin_scenario};
 
@@ -9,9 +11,9 @@ fn state_bits(world: &World) -> Vec<u64> {
 fn same_seed_same_bits_other_seed_differs() {
     let scenario = builtin_scenario("highway").unwrap().unwrap();
     let run = |seed| {
-        let mut world = scenario.build(seed);
+        let (mut world, mut stepper) = (scenario.build(seed), Stepper::new());
         for _ in 0..1000 {
-            world.tick();
+            stepper.tick(&mut world);
         }
         world
     };
@@ -25,12 +27,12 @@ fn ten_minutes_of_dense_traffic_without_a_collision() {
     let overrides = [("vehicle.ego_0.driver".to_string(), toml::Value::Table(toml::toml! { kind = "idm" }))];
     let text = crate::scenario::BUILTIN_SCENARIOS[2].2;
     let scenario = Scenario::parse("highway.toml", text, &overrides).unwrap();
-    let mut world = scenario.build(11);
+    let (mut world, mut stepper) = (scenario.build(11), Stepper::new());
     let mut lane_changes = 0;
     let mut lanes: Vec<LaneId> = world.vehicles().iter().map(|v| v.target_lane).collect();
     let ticks = (600.0 / world.params().physics_dt).round() as usize;
     for _ in 0..ticks {
-        world.tick();
+        stepper.tick(&mut world);
         for (lane, vehicle) in lanes.iter_mut().zip(world.vehicles()) {
             lane_changes += usize::from(*lane != vehicle.target_lane);
             *lane = vehicle.target_lane;
@@ -154,17 +156,26 @@ fn oriented_boxes() {
     assert!(oriented_boxes_overlap((-2.4, 2.4, diagonal), (0.0, 0.0, 0.0), half));
 }
 
-/// Every vehicle's state bits after each of `ticks` ticks, by name.
-fn trajectories(mut world: World, ticks: usize) -> std::collections::BTreeMap<String, Vec<u64>> {
+/// Every vehicle's state bits after each of `ticks` ticks of `stepper`, by name.
+fn trajectories_with(
+    mut world: World,
+    stepper: &mut Stepper,
+    ticks: usize,
+) -> std::collections::BTreeMap<String, Vec<u64>> {
     let mut out: std::collections::BTreeMap<String, Vec<u64>> = std::collections::BTreeMap::new();
     for _ in 0..ticks {
-        world.tick();
+        stepper.tick(&mut world);
         for vehicle in world.vehicles() {
             let bits = vehicle.state.to_array().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             out.entry(vehicle.name.clone()).or_default().extend(bits);
         }
     }
     out
+}
+
+/// `trajectories_with` a stepper of its own.
+fn trajectories(world: World, ticks: usize) -> std::collections::BTreeMap<String, Vec<u64>> {
+    trajectories_with(world, &mut Stepper::new(), ticks)
 }
 
 /// `text` with its `[[vehicle]]` blocks in the order `order` gives.
@@ -224,9 +235,10 @@ fn a_stackelberg_follower_answers_its_leaders_decision_of_this_period() {
     ];
     let text = crate::scenario::BUILTIN_SCENARIOS[0].2;
     let mut world = Scenario::parse("merge.toml", text, &overrides).unwrap().build(0);
-    world.tick();
+    Stepper::new().tick(&mut world);
     let (ec, ac) = (world.find("ec_0").unwrap(), world.find("ac").unwrap());
-    let scene = world.last_scene();
+    // The scene the tick's drivers read, with what they announced in it.
+    let scene = &world.scene;
     let Driver::Gt(leader) = &world.vehicle(ec).driver else { panic!("ec_0 is gt") };
     let announced = scene.car(ec).decided.expect("the leader announced its decision");
     assert_eq!(announced.0, leader.decision.accel);
@@ -238,9 +250,9 @@ fn game_theoretic_cars_deciding_on_several_threads_give_the_same_bits_as_in_turn
     let text = crate::scenario::BUILTIN_SCENARIOS.iter().find(|(name, ..)| *name == "highway-gt").unwrap().2;
     let scenario = Scenario::parse("highway-gt.toml", text, &[]).unwrap();
     let run = |threads| {
-        let mut world = scenario.build(9);
-        world.set_decision_threads(threads);
-        trajectories(world, 400)
+        let mut stepper = Stepper::new();
+        stepper.set_decision_threads(threads);
+        trajectories_with(scenario.build(9), &mut stepper, 400)
     };
     let alone = run(1);
     assert_eq!(alone, run(2));
@@ -253,15 +265,16 @@ fn game_theoretic_cars_deciding_on_several_threads_give_the_same_bits_as_in_turn
 /// periods 7, 17, ...: every vehicle's state at the end of each period. Before each
 /// period the scene is taken, as an env's cost sampling takes it; `before_tick` runs
 /// next, given the period, ahead of the learner's command.
-fn learner_periods(threads: usize, before_tick: &dyn Fn(&mut World, usize)) -> Vec<Vec<u64>> {
+fn learner_periods(threads: usize, before_tick: &dyn Fn(&mut World, &mut Stepper, usize)) -> Vec<Vec<u64>> {
     let text = crate::scenario::BUILTIN_SCENARIOS.iter().find(|(name, ..)| *name == "highway-gt").unwrap().2;
     let mut world = Scenario::parse("highway-gt.toml", text, &[]).unwrap().build(4);
-    world.set_decision_threads(threads);
+    let mut stepper = Stepper::new();
+    stepper.set_decision_threads(threads);
     let ego = world.find("ego_0").expect("highway-gt's learner");
     let mut periods = Vec::new();
     for period in 0..60 {
         world.scene();
-        before_tick(&mut world, period);
+        before_tick(&mut world, &mut stepper, period);
         world.command_agent(ego, AgentCommand::Track);
         match period % 10 {
             3 => {
@@ -275,55 +288,93 @@ fn learner_periods(threads: usize, before_tick: &dyn Fn(&mut World, usize)) -> V
             _ => {}
         }
         for _ in 0..world.params().substeps_per_control() {
-            world.tick();
+            stepper.tick(&mut world);
         }
         periods.push(state_bits(&world));
     }
     periods
 }
 
+#[test]
+fn a_stepper_dropped_and_built_again_mid_episode_changes_no_bit() {
+    // Every shipped scenario; a new stepper at every control period, with another thread
+    // count, after decisions made ahead (which go with the old one), and with the
+    // decision clock and explanations on in the old one.
+    for (name, file, text) in crate::scenario::BUILTIN_SCENARIOS {
+        let scenario = Scenario::parse(file, text, &[]).unwrap();
+        let reference = trajectories(scenario.build(3), 600);
+        let mut world = scenario.build(3);
+        let mut stepper = Stepper::new();
+        let mut out: std::collections::BTreeMap<String, Vec<u64>> = std::collections::BTreeMap::new();
+        for tick in 0..600 {
+            if tick % 10 == 0 {
+                world.scene();
+                stepper.decide_ahead(&world, &|| false);
+                stepper.clock_decisions(true);
+                stepper.set_explain(true);
+                stepper = Stepper::new();
+                stepper.set_decision_threads(1 + tick / 10 % 3);
+            }
+            stepper.tick(&mut world);
+            for vehicle in world.vehicles() {
+                let bits = vehicle.state.to_array().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                out.entry(vehicle.name.clone()).or_default().extend(bits);
+            }
+        }
+        assert!(out == reference, "{name}: a new stepper changed the world");
+    }
+}
+
 /// Puts a made-up acceleration in place of every decision made ahead.
-fn spoil_decisions_made_ahead(world: &mut World) {
-    let (_, decided) = world.ahead.0.as_mut().expect("decisions were made ahead");
-    for (decision, _) in decided.iter_mut().flatten() {
+fn spoil_decisions_made_ahead(stepper: &mut Stepper) {
+    let ahead = stepper.ahead.as_mut().expect("decisions were made ahead");
+    for (decision, _) in ahead.decided.iter_mut().flatten() {
         *decision = Decision::Accel(-3.0);
     }
 }
 
 #[test]
 fn decisions_made_ahead_are_the_ones_their_tick_makes_and_dropped_when_a_vehicle_changes() {
-    let reference = learner_periods(1, &|_, _| {});
+    let reference = learner_periods(1, &|_, _, _| {});
     // Made ahead on one thread fewer than the tick's: in turn with 2, in parallel with 3;
     // all of them, or the first few when told to stop (the tick decides the rest).
     for threads in [2, 3] {
-        let ahead = learner_periods(threads, &|world, _| world.decide_ahead(&|| false));
+        let ahead = learner_periods(threads, &|world, stepper, _| stepper.decide_ahead(world, &|| false));
         assert_eq!(ahead, reference, "deciding ahead on {threads} threads changed the world");
-        let partly = learner_periods(threads, &|world, _| {
+        let partly = learner_periods(threads, &|world, stepper, _| {
             let asked = AtomicUsize::new(0);
-            world.decide_ahead(&|| asked.fetch_add(1, Ordering::Relaxed) >= 3);
-            let (_, decided) = world.ahead.0.as_ref().expect("some were made");
-            assert!(decided.iter().flatten().count() < 10, "it stops when told to");
+            stepper.decide_ahead(world, &|| asked.fetch_add(1, Ordering::Relaxed) >= 3);
+            let ahead = stepper.ahead.as_ref().expect("some were made");
+            assert!(ahead.decided.iter().flatten().count() < 10, "it stops when told to");
         });
         assert_eq!(partly, reference, "deciding part ahead on {threads} threads changed the world");
     }
     // They are what the tick uses: made-up ones in their place change the world...
-    let kept = learner_periods(2, &|world, period| {
-        world.decide_ahead(&|| false);
+    let kept = learner_periods(2, &|world, stepper, period| {
+        stepper.decide_ahead(world, &|| false);
         if period == 20 {
-            spoil_decisions_made_ahead(world);
+            spoil_decisions_made_ahead(stepper);
         }
     });
     assert_eq!(kept[..20], reference[..20]);
     assert_ne!(kept[20], reference[20], "the tick did not use the decisions made ahead");
-    // ... unless the learner's vehicle changed in between, or a state was restored.
-    let dropped = learner_periods(3, &|world, period| {
-        world.decide_ahead(&|| false);
+    // ... unless the learner's vehicle changed in between, a state was restored, or the
+    // world is another one (a copy that went its own way since).
+    let dropped = learner_periods(3, &|world, stepper, period| {
+        stepper.decide_ahead(world, &|| false);
         if period % 10 == 3 || period % 10 == 7 {
-            spoil_decisions_made_ahead(world);
+            spoil_decisions_made_ahead(stepper);
         }
         if period == 20 {
-            spoil_decisions_made_ahead(world);
-            world.restore(world.state()).expect("its own state");
+            spoil_decisions_made_ahead(stepper);
+            world.restore(world.state().clone()).expect("its own state");
+        }
+        if period == 30 {
+            let mut other = world.clone();
+            other.set_target_speed(VehicleId(0), 5.0);
+            other.scene();
+            stepper.decide_ahead(&other, &|| false);
+            spoil_decisions_made_ahead(stepper);
         }
     });
     assert_eq!(dropped, reference, "decisions made ahead outlived a change they depend on");

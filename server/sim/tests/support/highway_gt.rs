@@ -107,12 +107,13 @@ pub fn with_safety(world: &World, enabled: bool) -> World {
 
 /// The first `seconds` of `world`, on one decision thread.
 pub fn run_world(mut world: World, seconds: f64) -> Run {
-    world.set_decision_threads(1);
+    let mut stepper = arena_sim::Stepper::new();
+    stepper.set_decision_threads(1);
     let ticks = (seconds / world.params().physics_dt).round() as u64;
     let mut crashes = Vec::new();
     for _ in 0..ticks {
         let seen = world.collisions().len();
-        world.tick();
+        stepper.tick(&mut world);
         for &collision in &world.collisions()[seen..] {
             let (rear, front) = (world.vehicle(collision.rear), world.vehicle(collision.front));
             crashes.push(Crash {

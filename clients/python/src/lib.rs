@@ -9,9 +9,10 @@
 use std::sync::Mutex;
 
 use arena_client::blocking::{Client as BlockingClient, Env as BlockingEnv};
-use arena_client::eval::budget::{self, Budget, Clock};
-use arena_client::stats::Bootstrap;
-use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSource, eval};
+use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSource};
+use arena_eval as eval;
+use arena_eval::budget::{self, Budget, Clock};
+use arena_eval::stats::Bootstrap;
 use arena_protocol::keys::DEFAULT_PREFIX;
 use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
@@ -355,7 +356,7 @@ fn episodes_of(rows: Vec<(String, String, u64, String, Bound<'_, PyDict>)>) -> P
     Ok(episodes)
 }
 
-/// The tables of evaluated episodes, as `arena eval` writes them (`arena_client::eval`):
+/// The tables of evaluated episodes, as `arena eval` writes them (`arena_eval`):
 /// `rows` are (policy, scenario, seed, agent, the agent's last info); returns (Markdown
 /// table, summary CSV, paired differences CSV, episodes CSV, JSON); `reference` is the
 /// policy the others are compared with (`None`: the first), `bootstrap` the resamples.
@@ -383,7 +384,7 @@ fn eval_report(
 /// p50 µs, p99 µs).
 type BudgetRow = (String, String, String, usize, f64, f64);
 
-/// The compute budget of evaluated policies (`arena_client::eval::budget`): `items` are
+/// The compute budget of evaluated policies (`arena_eval::budget`): `items` are
 /// (scenario, policy, clock 'server' or 'client', decision times in µs per agent and
 /// step); returns (Markdown, CSV, one row per item).
 #[pyfunction]
@@ -405,7 +406,7 @@ fn budget_report(items: Vec<(String, String, String, Vec<f32>)>) -> PyResult<(St
 }
 
 /// The opponents of a cross-play run, in column order: (name, [(override key, value)])
-/// (`arena_client::eval::crossplay::opponents`).
+/// (`arena_eval::crossplay::opponents`).
 #[pyfunction]
 fn crossplay_opponents() -> Vec<(String, Vec<(String, String)>)> {
     eval::crossplay::opponents().into_iter().map(|o| (o.name, o.overrides)).collect()
@@ -455,7 +456,7 @@ fn crossplay_report(
 
 /// Adds evaluated episodes (`rows` as `eval_report` takes them), played under the given
 /// settings, to a league (`league`: the file's text, `None` for a new one); returns the
-/// league file's new text and league.md ranked by `rank` (`arena_client::eval::league`).
+/// league file's new text and league.md ranked by `rank` (`arena_eval::league`).
 #[pyfunction]
 #[pyo3(signature = (league, rows, scenarios, seed, episodes, max_cycles=None, rank="return".to_string(), bootstrap=None))]
 #[allow(clippy::too_many_arguments)]
@@ -469,7 +470,7 @@ fn league_add(
     rank: String,
     bootstrap: Option<usize>,
 ) -> PyResult<(String, String)> {
-    use arena_client::eval::league::{League, LeagueSettings, league_markdown};
+    use arena_eval::league::{League, LeagueSettings, league_markdown};
     let parsed = episodes_of(rows)?;
     let run = LeagueSettings { scenarios, seed, episodes, max_cycles };
     let mut league = match league {

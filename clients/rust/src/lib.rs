@@ -24,9 +24,7 @@
 #![warn(missing_docs)]
 
 pub mod blocking;
-pub mod eval;
 pub mod placement;
-pub mod stats;
 
 use std::fmt;
 use std::sync::Arc;

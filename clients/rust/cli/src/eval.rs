@@ -1,6 +1,6 @@
 //! `arena eval`: policies compared on scenarios over the same seeds (a paired comparison):
 //! rates with Wilson intervals, other figures as median and IQM with bootstrap intervals,
-//! and every policy's paired differences from a reference policy (`arena_client::eval`),
+//! and every policy's paired differences from a reference policy (`arena_eval`),
 //! printed as tables and written as Markdown, CSV and JSON with box plots of the paper's
 //! cost components and bar charts of success and collision rates. Built-in drivers (`gt:...`, `expert`,
 //! `idm`) run in the server (the env's `policy` option); `idle` and `random` act here.
@@ -10,11 +10,11 @@ use std::time::Instant;
 
 use anyhow::Context;
 use arena_client::blocking::{Client, Env};
-use arena_client::eval::budget::{self, Budget, Clock};
-use arena_client::eval::league::{League, LeagueSettings, league_markdown};
-use arena_client::eval::{self, Episode, Settings, Summary, crossplay};
-use arena_client::stats::Bootstrap;
 use arena_client::{Action, CreateOptions, ScenarioSource};
+use arena_eval::budget::{self, Budget, Clock};
+use arena_eval::league::{League, LeagueSettings, league_markdown};
+use arena_eval::stats::Bootstrap;
+use arena_eval::{self as eval, Episode, Settings, Summary, crossplay};
 use arena_protocol::session::ConnectionFlags;
 use arena_protocol::{BuiltinPolicy, MetaAction, OptionValue, Space};
 use indicatif::{ProgressBar, ProgressStyle};

@@ -62,7 +62,7 @@ fn the_rms_costs_and_t_c_of_the_gt_ec_on_merge_equal_arena_papers() {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let json = results(&out);
     let figure = |episode: &serde_json::Value, key: &str| {
-        let k = arena_client::eval::figure_index(key).expect("a figure");
+        let k = arena_eval::figure_index(key).expect("a figure");
         episode["figures"][k].as_f64().expect("a number")
     };
     for (policy, style) in policies.into_iter().zip(Style::ALL) {
@@ -200,7 +200,7 @@ fn cross_play_on_merge_fills_the_matrix_of_every_style_and_game_identically_twic
     expected.push("gt:normal:stackelberg vs idm".to_string());
     assert_eq!(rows, expected, "one cell per style and game, then IDM");
     // The opponent is really another driver: AC's style changes how the merge goes.
-    let k = arena_client::eval::figure_index("return").expect("a figure");
+    let k = arena_eval::figure_index("return").expect("a figure");
     let returns: Vec<f64> = episodes.iter().map(|e| e["figures"][k].as_f64().expect("a number")).collect();
     assert_ne!(returns[0], returns[4], "aggressive and conservative opponents give the same return: {returns:?}");
     let table = std::fs::read_to_string(first.join("crossplay.md")).expect("crossplay.md");

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use arena_client::eval::{Episode, FIGURES, Summary, crossplay, figure_index};
+use arena_eval::{Episode, FIGURES, Summary, crossplay, figure_index};
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
@@ -134,8 +134,7 @@ pub fn crossplay(
         .collect();
     let values: Vec<f64> = cells.iter().flatten().flatten().map(|c| c.value).collect();
     let (low, high) = values.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| (l.min(v), h.max(v)));
-    let better_high =
-        FIGURES.iter().find(|f| f.key == figure).is_none_or(|f| f.better != arena_client::eval::Better::Lower);
+    let better_high = FIGURES.iter().find(|f| f.key == figure).is_none_or(|f| f.better != arena_eval::Better::Lower);
     // Drawn in pixels: a cell per (policy, opponent), names at the rows' and columns' centres.
     let (left, top, cell_w, cell_h) = (210i32, 70i32, 190i32, 46i32);
     let width = (left + cell_w * opponents.len() as i32 + 20) as u32;

@@ -1,20 +1,49 @@
-//! Evaluation figures: what one episode of one policy came to (read from the
-//! `episode_*` infos the server adds to an agent's last step, docs/evaluation.md), and
-//! their summaries per policy and scenario: rates with Wilson intervals, other figures as
-//! median and IQM with bootstrap intervals (`stats`), and each policy's paired differences
-//! from a reference policy over the shared seeds, as the tables of `arena eval` and
-//! `highway_arena.evaluate` print and write them (`tables`). One implementation for both,
-//! so a policy evaluated from Rust and from Python gets the same figures.
+//! Evaluation of highway-arena policies: the tables of `arena eval` and
+//! `highway_arena.evaluate`, the estimators behind their intervals (`stats`), cross-play
+//! against every opponent the AV can be (`crossplay`), leagues that accumulate
+//! evaluations (`league`) and the compute each policy spent deciding (`budget`). One
+//! implementation for the CLI and the Python extension, so a policy evaluated from Rust
+//! and from Python gets the same figures. A crate of its own beside arena-client, which
+//! stays the protocol client: evaluation needs only the infos of finished episodes
+//! (`arena-protocol`), whoever played them, and never compiles the simulation
+//! (scripts/check-deps).
+//!
+//! `Episode` is what one episode of one policy came to (read from the `episode_*` infos
+//! the server adds to an agent's last step, docs/evaluation.md); `summarise` turns
+//! episodes into a `Summary` per policy and scenario: rates with Wilson intervals, other
+//! figures as median and IQM with bootstrap intervals (`stats`), and each policy's paired
+//! differences from a reference policy over the shared seeds; `markdown`, `csv`, `json`
+//! and the rest write them as `arena eval` and `highway_arena.evaluate` do.
+//!
+//! ```
+//! use arena_eval::{Episode, FIGURES, Settings, markdown, summarise};
+//! let episodes: Vec<Episode> = (0..10)
+//!     .map(|seed| Episode {
+//!         policy: "idm".into(),
+//!         scenario: "merge".into(),
+//!         seed,
+//!         agent: "ego".into(),
+//!         end_reason: "time_limit".into(),
+//!         // Rates are 0 or 1 per episode; the other figures are numbers.
+//!         figures: FIGURES.iter().map(|f| if f.rate { (seed % 2) as f64 } else { 10.0 + seed as f64 }).collect(),
+//!     })
+//!     .collect();
+//! let summaries = summarise(&episodes, &Settings::default())?;
+//! println!("{}", markdown(&summaries));
+//! # Ok::<(), String>(())
+//! ```
+#![warn(missing_docs)]
 
 use arena_protocol::info as key;
 use arena_protocol::{EndReason, Info};
 use serde::Serialize;
 
-use crate::stats::{self, Bootstrap, Interval};
+use crate::stats::{Bootstrap, Interval};
 
 pub mod budget;
 pub mod crossplay;
 pub mod league;
+pub mod stats;
 mod tables;
 pub use tables::{csv, differences_csv, episodes_csv, json, markdown};
 

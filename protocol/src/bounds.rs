@@ -7,7 +7,8 @@
 
 use std::fmt;
 
-use crate::messages::{Action, CreateOptions, OptionValue, Request, RequestBody, ScenarioSource};
+use crate::messages::{Action, OptionValue, Request, RequestBody, ScenarioSource};
+use crate::options::CreateOptions;
 
 /// Longest scenario name, scenario file name or agent name (bytes).
 pub const MAX_NAME_BYTES: usize = 128;

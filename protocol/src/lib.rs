@@ -12,6 +12,8 @@
 //!   change; [`DecodeError`] says whether bytes were too large, trailing or malformed.
 //! - [`keys`]: key-expression builders and parsers; nothing else formats keys.
 //! - [`info`]: the keys, types and order of every agent's info, and [`EndReason`].
+//! - [`CreateOptions`] and [`CREATE_OPTIONS`]: an env's options, declared once; the table
+//!   says how clients take each and what it does (docs/protocol.md's list is written from it).
 //! - [`MetaAction`], [`ActionType`], [`ObservationKind`], [`Style`], [`Game`]: closed
 //!   sets of choices, each with `ALL`, `name`, `Display` and `FromStr`.
 //! - [`bounds`]: the size of every string and list a request may carry.
@@ -47,6 +49,7 @@ pub mod info;
 pub mod keys;
 mod messages;
 mod names;
+mod options;
 #[cfg(feature = "session")]
 pub mod session;
 mod spaces;
@@ -58,6 +61,7 @@ pub use explain::{DecisionExplained, GameTable, PathPoint};
 pub use info::{EndReason, Info, InfoKind, InfoValue};
 pub use messages::*;
 pub use names::UnknownName;
+pub use options::{CREATE_OPTIONS, CreateOption, CreateOptions, Given, OptionKind};
 pub use spaces::{DType, Space};
 pub use world::{
     CollisionEvent, DriverInfo, Fault, GtRole, LaneGeometry, RoadGeometry, VehicleFrame, VehicleInfo, WorldFrame,

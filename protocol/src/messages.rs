@@ -10,6 +10,7 @@ use crate::error::ErrorReply;
 use crate::explain::DecisionExplained;
 use crate::info::Info;
 use crate::names::named;
+use crate::options::CreateOptions;
 use crate::spaces::Space;
 use crate::world::{WorldFrame, WorldStart};
 
@@ -204,39 +205,6 @@ pub struct ResetOptions {
     pub overrides: Vec<(String, OptionValue)>,
 }
 
-/// Options of `CreateEnv`.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-pub struct CreateOptions {
-    /// (dotted key, value) overrides applied to the scenario before validation, e.g.
-    /// ("vehicle.ac.speed", Float(18.0)); a `Str` that is a TOML value (an inline
-    /// table) is taken as that value.
-    pub overrides: Vec<(String, OptionValue)>,
-    /// Action type of every agent, instead of the scenario's.
-    pub action_type: Option<ActionType>,
-    /// Observation kind.
-    pub observation: Option<ObservationKind>,
-    /// Episode length in steps, instead of the scenario's.
-    pub max_cycles: Option<u32>,
-    /// (height, width) of `RgbArray` frames.
-    pub render_size: Option<(u32, u32)>,
-    /// Add to every agent's info what the built-in game-theoretic AV would do in its
-    /// place, deciding with this game (`expert_action`, `expert_accel`, `expert_sigma`).
-    pub expert: Option<Game>,
-    /// Drive every learner in the server with this built-in policy (`arena eval`): the
-    /// agents stay agents (observations, rewards, infos), and steps carry no actions.
-    pub policy: Option<BuiltinPolicy>,
-    /// Add to every info the game-theoretic cars' solver counts (`gt.<car>.plans`,
-    /// `.qp_iterations`, `.qp_iterations_total`, `.fallbacks`, `.inexact`).
-    pub diagnostics: bool,
-    /// Record from the start (version 7): reset replies carry a `WorldStart`, step
-    /// replies a `WorldFrame` per control period (`RequestBody::Record` turns it on or
-    /// off later).
-    pub record: bool,
-    /// Explain every game-theoretic decision (version 8): step replies carry
-    /// `StepReply::explain`. Costs a second computation of each decision.
-    pub explain: bool,
-}
-
 /// A driver the server has, in a learner's place.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum BuiltinPolicy {
@@ -252,8 +220,12 @@ pub enum BuiltinPolicy {
 }
 
 impl BuiltinPolicy {
-    /// The names `FromStr` takes, for help texts and error messages.
-    pub const NAMES: &'static str = "gt:<aggressive|normal|conservative>:<nash|stackelberg>, expert (gt in the learner's own style, stackelberg), idm";
+    /// The forms `FromStr` takes, for help texts and error messages:
+    /// `gt:<aggressive|normal|conservative>:<nash|stackelberg>`, `expert`, `idm`.
+    pub fn forms() -> [String; 3] {
+        let gt = format!("gt:<{}>:<{}>", Style::ALL.map(Style::name).join("|"), Game::ALL.map(Game::name).join("|"));
+        [gt, "expert".into(), "idm".into()]
+    }
 }
 
 impl fmt::Display for BuiltinPolicy {
@@ -272,7 +244,14 @@ impl fmt::Display for BuiltinPolicy {
 impl FromStr for BuiltinPolicy {
     type Err = String;
     fn from_str(text: &str) -> Result<Self, String> {
-        let unknown = || format!("unknown built-in policy '{text}': the built-in policies are {}", Self::NAMES);
+        let unknown = || {
+            let [gt, expert, idm] = Self::forms();
+            let stackelberg = Game::Stackelberg;
+            format!(
+                "unknown built-in policy '{text}': the built-in policies are {gt}, {expert} (gt in the learner's own \
+                 style, {stackelberg}), {idm}"
+            )
+        };
         match text.split(':').collect::<Vec<_>>().as_slice() {
             ["expert"] => Ok(BuiltinPolicy::Gt { style: None, game: Game::Stackelberg }),
             ["idm"] => Ok(BuiltinPolicy::Idm),

@@ -529,3 +529,67 @@ def test_every_agents_infos_keep_one_schema_of_numbers_from_reset_to_the_last_st
                 ended[agent] = reason
     assert set(ended) == set(env.possible_agents)
     env.close()
+
+
+def test_the_env_options_are_the_protocols_create_options_but_the_two_taken_their_own_way():
+    assert list(highway_arena.ENV_OPTIONS) == [
+        "action_type",
+        "observation",
+        "max_cycles",
+        "render_size",
+        "expert",
+        "policy",
+        "diagnostics",
+        "explain",
+    ]
+    assert highway_arena.ENV_OPTIONS["max_cycles"] is None and highway_arena.ENV_OPTIONS["explain"] is False
+
+
+# One wrong value for each env option that is not a flag, and the error that shows the
+# value reached the extension or the server (had the keyword been dropped, the env would
+# be made). The flags are shown by what they do (diagnostics, explain: their own tests).
+WRONG_OPTION = {
+    "action_type": ("sideways", ValueError, r"^action_type: unknown action type 'sideways': use one of meta, continuous"),
+    "observation": ("pixels", ValueError, r"^observation: unknown observation 'pixels'"),
+    "max_cycles": (0, highway_arena.ScenarioError, r"max_cycles must be at least 1"),
+    "render_size": ((8, 8), highway_arena.ScenarioError, r"render_size \(8, 8\) must be within 16..=4096"),
+    "expert": ("pareto", ValueError, r"^expert: unknown game 'pareto': use one of nash, stackelberg"),
+    "policy": ("calm", ValueError, r"^policy: unknown built-in policy 'calm'"),
+}
+
+
+def test_every_env_option_but_the_flags_has_a_wrong_value_case():
+    flags = [name for name, default in highway_arena.ENV_OPTIONS.items() if default is False]
+    assert flags == ["diagnostics", "explain"]
+    assert list(WRONG_OPTION) == [name for name in highway_arena.ENV_OPTIONS if name not in flags]
+
+
+@pytest.mark.parametrize("option", WRONG_OPTION)
+@pytest.mark.parametrize("name", ENVS)
+def test_every_env_constructor_passes_each_env_option_on_and_shows_it(name, option, tmp_path):
+    build, _, _ = CONSTRUCTORS[name]
+    constructor = getattr(highway_arena, name)
+    assert inspect.signature(constructor).parameters[option].default is None, (name, option)
+    assert f"- ``{option}`` (" in constructor.__doc__, (name, option)
+    value, error, message = WRONG_OPTION[option]
+    with pytest.raises(error, match=message):
+        build(tmp_path, **{option: value})
+
+
+def test_a_create_option_of_the_wrong_type_is_refused_naming_it():
+    with pytest.raises(TypeError, match=r"^render_size takes two whole numbers, not str"):
+        highway_arena.parallel_env("merge", render_size="large")
+    with pytest.raises(ValueError, match=r"^max_cycles: -1 is not a whole number from 0 to 4294967295"):
+        highway_arena.parallel_env("merge", max_cycles=-1)
+
+
+def test_the_python_readme_lists_the_env_options_as_the_protocols_table_says():
+    readme = (REPO / "clients" / "python" / "README.md").read_text()
+    begin = "<!-- env options: written from highway_arena.ENV_OPTIONS, checked by tests/python/test_client.py -->\n"
+    listed = readme.split(begin)[1].split("<!-- end of the env options -->")[0]
+    expected = "".join(
+        f"  - `{name}` ({takes}): {doc}\n"
+        for name, _, takes, doc in highway_arena._core.CREATE_OPTIONS
+        if name in highway_arena.ENV_OPTIONS
+    )
+    assert listed == expected, f"clients/python/README.md's env options should be:\n{expected}"

@@ -9,15 +9,16 @@
 use std::sync::Mutex;
 
 use arena_client::blocking::{Client as BlockingClient, Env as BlockingEnv};
-use arena_client::{ClientError, CreateOptions, EnvSpecs, OptionValue, ScenarioSource};
+use arena_client::{ClientError, EnvSpecs, OptionValue, ScenarioSource};
 use arena_eval as eval;
 use arena_eval::budget::{self, Budget, Clock};
 use arena_eval::stats::Bootstrap;
 use arena_protocol::keys::DEFAULT_PREFIX;
 use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
-    Action, ActionType, BuiltinPolicy, DecisionExplained, EndReason, Frame, Game, Info, InfoValue, MetaAction,
-    Observation, ObservationKind, RenderMode, Space, StepReply, Tensor, TensorData, WorldFrame, WorldStart,
+    Action, ActionType, CREATE_OPTIONS, CreateOptions, DecisionExplained, EndReason, Frame, Game, Given, Info,
+    InfoValue, MetaAction, Observation, ObservationKind, OptionKind, RenderMode, Space, StepReply, Tensor, TensorData,
+    WorldFrame, WorldStart,
 };
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -113,49 +114,21 @@ impl Client {
     }
 
     /// Creates an env: `scenario` names one on the server, or `text` is a scenario
-    /// file's TOML (then `scenario` names it in error messages).
-    #[pyo3(signature = (server, scenario, text = None, overrides = Vec::new(), action_type = None, observation = None, max_cycles = None, render_size = None, expert = None, policy = None, diagnostics = false, record = false, explain = false))]
-    #[allow(clippy::too_many_arguments)]
+    /// file's TOML (then `scenario` names it in error messages). The keywords are the
+    /// create options, `CREATE_OPTIONS` (None leaves one at its default).
+    #[pyo3(signature = (server, scenario, text = None, **options))]
     fn create_env(
         &self,
         py: Python<'_>,
         server: String,
         scenario: String,
         text: Option<String>,
-        overrides: Vec<(String, Bound<'_, PyAny>)>,
-        action_type: Option<String>,
-        observation: Option<String>,
-        max_cycles: Option<u32>,
-        render_size: Option<(u32, u32)>,
-        expert: Option<String>,
-        policy: Option<String>,
-        diagnostics: bool,
-        record: bool,
-        explain: bool,
+        options: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Env> {
-        let overrides = overrides
-            .into_iter()
-            .map(|(key, value)| option_value(&key, &value).map(|v| (key, v)))
-            .collect::<PyResult<Vec<_>>>()?;
-        let action_type = parsed::<ActionType>("action_type", action_type)?;
-        let observation = parsed::<ObservationKind>("observation", observation)?;
-        let expert = parsed::<Game>("expert", expert)?;
-        let policy = policy.map(|name| name.parse::<BuiltinPolicy>()).transpose().map_err(PyValueError::new_err)?;
+        let options = create_options(options)?;
         let source = match text {
             Some(text) => ScenarioSource::Inline { file_name: scenario, text },
             None => ScenarioSource::Named(scenario),
-        };
-        let options = CreateOptions {
-            overrides,
-            action_type,
-            observation,
-            max_cycles,
-            render_size,
-            expert,
-            policy,
-            diagnostics,
-            record,
-            explain,
         };
         let env = py.detach(|| self.inner.create_env(&server, source, options)).map_err(to_py_err)?;
         Ok(Env {
@@ -222,13 +195,54 @@ impl Client {
     }
 }
 
-/// `text` as one of the protocol's named choices; an unknown one is a ValueError naming
-/// the keyword and the valid names.
-fn parsed<T: std::str::FromStr<Err = arena_protocol::UnknownName>>(
-    keyword: &str,
-    text: Option<String>,
-) -> PyResult<Option<T>> {
-    text.map(|text| text.parse::<T>().map_err(|e| PyValueError::new_err(format!("{keyword}: {e}")))).transpose()
+/// The create options given as keywords, each read as `CREATE_OPTIONS` says: a value of
+/// the wrong type is a TypeError, one the option refuses a ValueError, each naming the
+/// option; None leaves an option at its default.
+fn create_options(given: Option<&Bound<'_, PyDict>>) -> PyResult<CreateOptions> {
+    let mut options = CreateOptions::default();
+    for (key, value) in given.into_iter().flat_map(|given| given.iter()) {
+        let name: String = key.extract()?;
+        let Some(option) = CREATE_OPTIONS.iter().find(|option| option.name == name) else {
+            let names = CREATE_OPTIONS.iter().map(|option| option.name).collect::<Vec<_>>().join(", ");
+            return Err(PyTypeError::new_err(format!("unknown create option {name:?}; the options are {names}")));
+        };
+        if value.is_none() {
+            continue;
+        }
+        let wrong = || -> PyResult<PyErr> {
+            Ok(PyTypeError::new_err(format!("{name} takes {}, not {}", option.kind.takes(), value.get_type().name()?)))
+        };
+        let given = match option.kind {
+            OptionKind::Flag => Given::Flag(value.is_truthy()?),
+            OptionKind::Count => Given::Count(value.extract().or_else(|_| Err(wrong()?))?),
+            OptionKind::Pair => {
+                let (a, b) = value.extract().or_else(|_| Err(wrong()?))?;
+                Given::Pair(a, b)
+            }
+            OptionKind::Choice(_) => Given::Name(value.extract().or_else(|_| Err(wrong()?))?),
+            OptionKind::Overrides => Given::Overrides(overrides(&value)?),
+        };
+        (option.set)(&mut options, given).map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
+    }
+    Ok(options)
+}
+
+/// Scenario overrides given as a dict or as (key, value) pairs.
+fn overrides(value: &Bound<'_, PyAny>) -> PyResult<Vec<(String, OptionValue)>> {
+    let pairs: Vec<(Bound<'_, PyAny>, Bound<'_, PyAny>)> = match value.cast::<PyDict>() {
+        Ok(dict) => dict.iter().collect(),
+        Err(_) => value.extract().map_err(|_| {
+            PyTypeError::new_err("overrides must be a dict of dotted scenario keys to values, or (key, value) pairs")
+        })?,
+    };
+    pairs
+        .into_iter()
+        .map(|(key, value)| {
+            let key: String =
+                key.extract().map_err(|_| PyTypeError::new_err("override keys must be dotted scenario keys (str)"))?;
+            option_value(&key, &value).map(|value| (key, value))
+        })
+        .collect()
 }
 
 fn closed_error() -> PyErr {
@@ -898,6 +912,16 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("ACTION_TYPES", ActionType::ALL.map(ActionType::name).to_vec())?;
     m.add("OBSERVATIONS", ObservationKind::ALL.map(ObservationKind::name).to_vec())?;
     m.add("GAMES", Game::ALL.map(Game::name).to_vec())?;
+    // The create options (name, default, what it takes, what it does), declared once in
+    // arena-protocol: the Python package builds its keywords and their help from them.
+    let options = CREATE_OPTIONS.iter().map(|option| {
+        let default = match option.kind {
+            OptionKind::Flag => PyBool::new(m.py(), false).to_owned().into_any(),
+            _ => m.py().None().into_bound(m.py()),
+        };
+        (option.name, default, option.kind.takes(), option.doc())
+    });
+    m.add("CREATE_OPTIONS", PyList::new(m.py(), options.collect::<Vec<_>>())?)?;
     m.add_class::<Client>()?;
     m.add_class::<Env>()?;
     m.add_function(wrap_pyfunction!(budget_report, m)?)?;

@@ -21,8 +21,10 @@ Meta actions are indices into ``META_ACTIONS``.
 ``connect`` defaults to $HIGHWAY_ARENA_CONNECT, else tcp/127.0.0.1:7447 (where
 ``arena-server`` listens by default); ``launch_server()`` starts one for you. Every
 constructor takes the connection keywords ``CONNECTION_KEYWORDS`` (with their defaults;
-``help(highway_arena.parallel_env)`` says what each means), and refuses an unknown
-keyword with a TypeError naming it and the valid ones.
+``help(highway_arena.parallel_env)`` says what each means) and the env options the server
+applies, ``ENV_OPTIONS`` (their names and defaults, from the protocol's one table:
+``action_type``, ``expert``, ``policy``, ...), and refuses an unknown keyword with a
+TypeError naming it and the valid ones.
 """
 
 import gymnasium
@@ -41,7 +43,7 @@ from ._errors import (
     SnapshotError,
 )
 from . import _connection
-from ._connection import CONNECTION_KEYWORDS, default_connect
+from ._connection import CONNECTION_KEYWORDS, ENV_OPTIONS, default_connect
 from ._core import END_REASONS, INFO_KEYS, META_ACTIONS
 from ._server import LocalServer, find_server_binary, launch_server, serving
 from .batch import BatchEnv
@@ -54,6 +56,7 @@ from .vector import VectorEnv
 
 __all__ = [
     "CONNECTION_KEYWORDS",
+    "ENV_OPTIONS",
     "END_REASONS",
     "INFO_KEYS",
     "META_ACTIONS",
@@ -107,12 +110,14 @@ for _scenario in (
 
 
 @_connection.takes_connection_keywords
+@_connection.takes_env_options
 def parallel_env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwargs) -> ParallelEnv:
     """A ``pettingzoo.ParallelEnv`` of ``scenario`` on the server at ``connect``."""
     return ParallelEnv(scenario, connect=connect, render_mode=render_mode, max_cycles=max_cycles, **kwargs)
 
 
 @_connection.takes_connection_keywords
+@_connection.takes_env_options
 def env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwargs):
     """The AEC version of ``parallel_env`` (PettingZoo's own ``parallel_to_aec``). Its
     ``dt`` is the simulated seconds of one cycle (every live agent acting once)."""
@@ -126,18 +131,21 @@ def env(scenario="merge", connect=None, render_mode=None, max_cycles=None, **kwa
 
 
 @_connection.takes_connection_keywords
+@_connection.takes_env_options
 def gym_env(scenario="highway", agent=None, connect=None, render_mode=None, **kwargs) -> GymEnv:
     """A ``gymnasium.Env`` for one learner of ``scenario``."""
     return GymEnv(scenario, agent=agent, connect=connect, render_mode=render_mode, **kwargs)
 
 
 @_connection.takes_connection_keywords
+@_connection.takes_env_options
 def batch_env(scenario="highway", num_envs=8, connect=None, **kwargs) -> BatchEnv:
     """``num_envs`` envs stepped in one round trip per step."""
     return BatchEnv(scenario, num_envs=num_envs, connect=connect, **kwargs)
 
 
 @_connection.takes_connection_keywords
+@_connection.takes_env_options
 def vector_env(scenario="highway", num_envs=8, agent=None, connect=None, **kwargs) -> VectorEnv:
     """A ``gymnasium.vector.VectorEnv`` of ``num_envs`` copies of one learner's view of
     ``scenario``, stepped in one round trip per step, with next-step autoreset."""

@@ -1,8 +1,10 @@
 """How every env constructor reaches the servers, written once: the connection keywords
-(their names, defaults and meanings), the advice a user gets when no server answers,
-and the ``Connection`` they configure. A new connection keyword is added to
-``_KEYWORDS`` (and used in ``Connection``) and nowhere else: every constructor takes,
-documents, lists and passes on the keywords of this table."""
+(their names, defaults and meanings), the env options the server applies (read from the
+protocol's table), the advice a user gets when no server answers, and the ``Connection``
+they configure. A new connection keyword is added to ``_KEYWORDS`` (and used in
+``Connection``) and nowhere else; a new env option is added to the protocol's table
+(protocol/src/options.rs) and nowhere in Python: every constructor takes, documents,
+lists and passes on the keywords of both tables."""
 
 from __future__ import annotations
 
@@ -93,24 +95,69 @@ def keywords(function) -> list[str]:
     return names + [name for name in CONNECTION_KEYWORDS if name not in names]
 
 
-def takes_connection_keywords(constructor):
-    """Marks a class or function whose ``**kwargs`` take the connection keywords: its
-    signature (``help()``, IDEs, ``keywords()``) shows them as keyword-only parameters with
-    their defaults, and its docstring ends with what each means."""
+# The env options a server applies at creation, declared once in arena-protocol
+# (protocol/src/options.rs) and read from the extension as (name, default, what it
+# takes, what it does). Two of the protocol's options are taken their own way, not as
+# keywords of these names and values: ``overrides`` (a dict, or ``a__b`` keywords) and
+# ``record`` (where to record: a path or a folder).
+_OWN_WAY = ("overrides", "record")
+_ENV_OPTIONS = [option for option in _core.CREATE_OPTIONS if option[0] not in _OWN_WAY]
+
+# The env options and their defaults (None: the scenario's, or the server's), in the
+# protocol's order.
+ENV_OPTIONS = types.MappingProxyType({name: default for name, default, _, _ in _ENV_OPTIONS})
+
+
+def _rst(text: str) -> str:
+    """The protocol's docs write code in single backticks; docstrings in double."""
+    return re.sub(r"`([^`]+)`", r"``\1``", text)
+
+
+# What each env option means, as the docstrings of the constructors that take them end.
+ENV_OPTIONS_HELP = "Env options (``highway_arena.ENV_OPTIONS``, applied by the server):\n\n" + "\n".join(
+    textwrap.fill(f"- ``{name}`` ({takes}): {_rst(doc)}", width=88, subsequent_indent="  ", break_on_hyphens=False)
+    for name, _, takes, doc in _ENV_OPTIONS
+)
+
+
+def env_options(kwargs: dict) -> dict:
+    """Takes the env options out of ``kwargs`` (a constructor's other keywords), as one
+    dict for ``Connection.create``."""
+    return {name: kwargs.pop(name) for name in ENV_OPTIONS if name in kwargs}
+
+
+def _shows(constructor, what: str, defaults, help_text: str):
+    """Shows ``defaults``' keywords in the signature of ``constructor`` (whose ``**kwargs``
+    take them) as keyword-only parameters with their defaults, those it does not name
+    itself, and ends its docstring with ``help_text``."""
     function = constructor.__init__ if isinstance(constructor, type) else constructor
     signature = inspect.signature(function)
     parameters = list(signature.parameters.values())
     if not parameters or parameters[-1].kind is not inspect.Parameter.VAR_KEYWORD:
-        raise TypeError(f"{function.__qualname__} needs **kwargs to take the connection keywords")
+        raise TypeError(f"{function.__qualname__} needs **kwargs to take the {what}")
     named = {p.name for p in parameters}
     shown = [
         inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default)
-        for name, default in CONNECTION_KEYWORDS.items()
+        for name, default in defaults.items()
         if name not in named
     ]
     function.__signature__ = signature.replace(parameters=[*parameters[:-1], *shown, parameters[-1]])
-    constructor.__doc__ = f"{inspect.cleandoc(constructor.__doc__ or '')}\n\n{CONNECTION_HELP}"
+    constructor.__doc__ = f"{inspect.cleandoc(constructor.__doc__ or '')}\n\n{help_text}"
     return constructor
+
+
+def takes_connection_keywords(constructor):
+    """Marks a class or function whose ``**kwargs`` take the connection keywords: its
+    signature (``help()``, IDEs, ``keywords()``) shows them as keyword-only parameters with
+    their defaults, and its docstring ends with what each means."""
+    return _shows(constructor, "connection keywords", CONNECTION_KEYWORDS, CONNECTION_HELP)
+
+
+def takes_env_options(constructor):
+    """Marks a class or function whose ``**kwargs`` take the env options, as
+    ``takes_connection_keywords`` does the connection keywords (apply it first: the env
+    options come before the connection keywords)."""
+    return _shows(constructor, "env options", ENV_OPTIONS, ENV_OPTIONS_HELP)
 
 
 # A Zenoh endpoint: <protocol>/<address>[?<metadata>][#<config>].
@@ -211,50 +258,19 @@ class Connection:
         return self.client.place(count)
 
     @translated
-    def create(
-        self,
-        scenario,
-        scenario_text=None,
-        overrides=None,
-        server=None,
-        record=False,
-        *,
-        action_type=None,
-        observation=None,
-        max_cycles=None,
-        render_size=None,
-        expert=None,
-        policy=None,
-        diagnostics=False,
-        explain=False,
-    ):
-        """An env on ``server`` (default: the one picked at connection). The keyword-only
-        parameters are the env's options on the server (``ENV_OPTIONS``); ``record``
-        (not one of them: envs made of several do not record) has replies carry the world."""
-        pairs = [(str(k), v) for k, v in (overrides or {}).items()]
+    def create(self, scenario, scenario_text=None, overrides=None, server=None, record=False, **options):
+        """An env on ``server`` (default: the one picked at connection). ``options`` are
+        the env's options on the server (``ENV_OPTIONS``); ``record`` (taken its own way by
+        the constructors: envs made of several do not record) has replies carry the world."""
         return self.client.create_env(
             server or self.server,
             scenario,
             scenario_text,
-            pairs,
-            action_type=action_type,
-            observation=observation,
-            max_cycles=max_cycles,
-            render_size=render_size,
-            expert=expert,
-            policy=policy,
-            diagnostics=bool(diagnostics),
+            overrides=dict(overrides or {}),
             record=bool(record),
-            explain=bool(explain),
+            **options,
         )
 
     @translated
     def close(self):
         self.client.close()
-
-
-# The options of an env the server creates, which envs made of several (batch_env,
-# vector_env) pass on to each: ``Connection.create``'s keyword-only parameters.
-ENV_OPTIONS = tuple(
-    p.name for p in inspect.signature(Connection.create).parameters.values() if p.kind is inspect.Parameter.KEYWORD_ONLY
-)

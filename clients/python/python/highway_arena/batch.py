@@ -5,27 +5,27 @@ a ParallelEnv's give. Finished envs reset themselves."""
 from __future__ import annotations
 
 from . import _convert, _core
-from ._connection import ENV_OPTIONS, Connection, keywords, split, takes_connection_keywords
+from ._connection import Connection, env_options, keywords, split, takes_connection_keywords, takes_env_options
 from ._errors import InvalidActionError, translate, translated
 from ._recordings import EnvRecordings, recording_meta
 from .parallel import reset_options, scenario_overrides
 
 
 @takes_connection_keywords
+@takes_env_options
 class BatchEnv:
     """``num_envs`` copies of a scenario; env ``i`` is seeded ``seed + i`` and re-seeded
-    from its own stream when its episode ends. Takes ``parallel_env``'s env options
-    (``action_type``, ``observation``, ``expert``, ``policy``, ``max_cycles``, ...),
-    ``scenario_text``, scenario overrides (``overrides={"vehicle.ac.speed": 18.0}`` or
-    ``vehicle__ac__speed=18.0``), ``record`` (a folder: record every env from the start,
-    as ``start_recording`` does) and the connection keywords (below); any other keyword
-    raises TypeError naming it and the valid ones."""
+    from its own stream when its episode ends. Takes ``scenario_text``, scenario overrides
+    (``overrides={"vehicle.ac.speed": 18.0}`` or ``vehicle__ac__speed=18.0``), ``record``
+    (a folder: record every env from the start, as ``start_recording`` does), the env
+    options and the connection keywords (both below); any other keyword raises TypeError
+    naming it and the valid ones."""
 
     def __init__(
         self, scenario="highway", num_envs=8, connect=None, *, scenario_text=None, overrides=None, record=None, **kwargs
     ):
         connection, rest = split(kwargs, connect=connect)
-        options = {name: rest.pop(name) for name in ENV_OPTIONS if name in rest}
+        options = env_options(rest)
         overrides = scenario_overrides(overrides, rest, "batch_env()", KEYWORDS)
         if num_envs < 1:
             raise ValueError(f"num_envs must be at least 1, not {num_envs}")
@@ -140,5 +140,5 @@ class BatchEnv:
 
 
 # Every keyword BatchEnv (and batch_env) takes by name: its own, the env options and the
-# connection keywords.
-KEYWORDS = [*keywords(BatchEnv.__init__), *ENV_OPTIONS]
+# connection keywords (its signature shows them all).
+KEYWORDS = keywords(BatchEnv.__init__)

@@ -7,7 +7,7 @@ import numpy as np
 from pettingzoo import ParallelEnv as _ParallelEnv
 
 from . import _convert
-from ._connection import Connection, keywords, split, takes_connection_keywords
+from ._connection import Connection, env_options, keywords, split, takes_connection_keywords, takes_env_options
 from ._errors import InvalidActionError, ScenarioError, translated
 from ._recordings import recording_meta
 
@@ -71,28 +71,21 @@ def scenario_overrides(overrides, dotted: dict, signature: str, valid) -> dict:
 
 
 @takes_connection_keywords
+@takes_env_options
 class ParallelEnv(_ParallelEnv):
     """PettingZoo Parallel API over an env on a server. Arguments: ``scenario`` (a name
     the server knows, or the name of ``scenario_text``), ``connect`` (endpoint),
-    ``render_mode`` ('rgb_array' or 'ansi'), ``max_cycles``, ``action_type`` ('meta' or
-    'continuous'), ``observation`` ('kinematics' or 'kinematics_with_mask'), ``expert``
-    ('nash' or 'stackelberg': infos say what the built-in AV would do), ``policy`` (a
-    built-in driver the server drives every learner with, as ``arena eval`` does:
-    'gt:<style>:<game>', 'expert' or 'idm'; then ``step({})`` takes no actions),
-    ``diagnostics`` (True: infos carry every game-theoretic car's solver counts,
-    ``gt.<car>.plans``, ``.qp_iterations``, ``.qp_iterations_total``, ``.fallbacks``,
-    ``.inexact``), ``explain`` (True: every game-theoretic decision comes with the game
-    it played, its cost tables and predicted paths, in ``explanations`` after each step
-    and in the recording; docs/viewing.md, "The AV explained"), ``render_size`` ((height,
-    width) of rgb frames, default (300, 600)), ``render_follow`` (the name of the vehicle
+    ``render_mode`` ('rgb_array' or 'ansi'), ``render_follow`` (the name of the vehicle
     frames follow, any vehicle of the scenario, e.g. 'ac'; default the first learner; the
-    attribute of the same name changes it later), ``seed`` (used by the first ``reset()`` that is given none, for
-    reproducible runs), ``record`` (a path: record every episode into that Rerun
-    ``.rrd`` file from the start, as ``start_recording(path)`` does; docs/viewing.md),
-    the connection keywords (below), and scenario overrides as
-    keyword arguments with dots written as double underscores (``vehicle__ac__speed=18.0``)
-    or in ``overrides={"vehicle.ac.speed": 18.0}``. Any other keyword raises TypeError
-    naming it and the valid ones."""
+    attribute of the same name changes it later), ``seed`` (used by the first ``reset()``
+    that is given none, for reproducible runs), ``record`` (a path: record every episode
+    into that Rerun ``.rrd`` file from the start, as ``start_recording(path)`` does;
+    docs/viewing.md), the env options and the connection keywords (both below), and
+    scenario overrides as keyword arguments with dots written as double underscores
+    (``vehicle__ac__speed=18.0``) or in ``overrides={"vehicle.ac.speed": 18.0}``. With
+    ``policy`` ``step({})`` takes no actions; with ``explain`` the decisions of each step
+    are in ``explanations`` and in the recording (docs/viewing.md, "The AV explained").
+    Any other keyword raises TypeError naming it and the valid ones."""
 
     metadata = {"render_modes": list(RENDER_MODES), "is_parallelizable": True}
 
@@ -102,19 +95,12 @@ class ParallelEnv(_ParallelEnv):
         connect=None,
         render_mode=None,
         max_cycles=None,
-        action_type=None,
-        observation=None,
-        expert=None,
-        policy=None,
-        diagnostics=False,
+        *,
         scenario_text=None,
         overrides=None,
-        *,
-        render_size=None,
         render_follow=None,
         seed=None,
         record=None,
-        explain=False,
         **kwargs,
     ):
         # Kept so a pickled env (SuperSuit's vector envs copy them) rebuilds its own.
@@ -123,23 +109,13 @@ class ParallelEnv(_ParallelEnv):
         self._init_args = {**{k: v for k, v in named.items() if k != "record"}, **kwargs}
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise ValueError(f"render_mode must be one of {RENDER_MODES} or None, not {render_mode!r}")
-        connection, dotted = split(kwargs, connect=connect)
-        all_overrides = scenario_overrides(overrides, dotted, "parallel_env()", KEYWORDS)
+        connection, rest = split(kwargs, connect=connect)
+        options = {**env_options(rest), "max_cycles": max_cycles}
+        all_overrides = scenario_overrides(overrides, rest, "parallel_env()", KEYWORDS)
         self._connection = Connection(**connection)
         try:
             self._env = self._connection.create(
-                scenario,
-                scenario_text,
-                all_overrides,
-                action_type=action_type,
-                observation=observation,
-                max_cycles=max_cycles,
-                render_size=render_size,
-                expert=expert,
-                policy=policy,
-                diagnostics=diagnostics,
-                record=record is not None,
-                explain=explain,
+                scenario, scenario_text, all_overrides, record=record is not None, **options
             )
             specs = self._env.specs()
         except BaseException:

@@ -7,14 +7,15 @@ import gymnasium
 from gymnasium.envs.registration import EnvSpec
 
 from . import parallel
-from ._connection import takes_connection_keywords
+from ._connection import takes_connection_keywords, takes_env_options
 from .parallel import ParallelEnv, refuse_unknown
 
 
 @takes_connection_keywords
+@takes_env_options
 class GymEnv(gymnasium.Env):
     """One agent of a scenario as a ``gymnasium.Env``. Takes ParallelEnv's arguments
-    (the connection keywords among them, below), plus ``agent`` (default: the scenario's
+    (the env options and the connection keywords among them, below), plus ``agent`` (default: the scenario's
     first learner); any other keyword raises TypeError naming it and the valid ones. With
     ``policy`` the server drives the learner and ``step`` ignores its action (pass None)."""
 

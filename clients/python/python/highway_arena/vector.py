@@ -14,21 +14,21 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
 from . import _convert, _core
-from ._connection import ENV_OPTIONS, Connection, keywords, split, takes_connection_keywords
+from ._connection import Connection, env_options, keywords, split, takes_connection_keywords, takes_env_options
 from ._errors import translate, translated
 from ._recordings import EnvRecordings, recording_meta
 from .parallel import reset_options, scenario_overrides
 
 
 @takes_connection_keywords
+@takes_env_options
 class VectorEnv(gymnasium.vector.VectorEnv):
     """``num_envs`` copies of ``scenario`` for one learner (``agent``, default the first;
     other learners' vehicles are driven by IDM, as in ``gym_env``). Takes
-    ``parallel_env``'s env options (``action_type``, ``observation``, ``expert``,
-    ``max_cycles``, ...), ``scenario_text``, scenario overrides (``overrides=`` or
-    ``vehicle__ac__speed=18.0``), ``autoreset_mode``, ``record`` (a folder: record every
-    sub-env from the start, as ``start_recording`` does) and the connection keywords
-    (below); any other keyword raises TypeError naming it and the valid ones. ``reset(seed=s)``
+    ``scenario_text``, scenario overrides (``overrides=`` or ``vehicle__ac__speed=18.0``),
+    ``autoreset_mode``, ``record`` (a folder: record every sub-env from the start, as
+    ``start_recording`` does), the env options and the connection keywords (both below);
+    any other keyword raises TypeError naming it and the valid ones. ``reset(seed=s)``
     seeds sub-env ``i`` with ``s + i``; a list gives each its own seed."""
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -47,7 +47,7 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         **kwargs,
     ):
         connection, rest = split(kwargs, connect=connect)
-        options = {name: rest.pop(name) for name in ENV_OPTIONS if name in rest}
+        options = env_options(rest)
         overrides = scenario_overrides(overrides, rest, "vector_env()", KEYWORDS)
         autoreset_mode = AutoresetMode(autoreset_mode)
         if autoreset_mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
@@ -210,5 +210,5 @@ class VectorEnv(gymnasium.vector.VectorEnv):
 
 
 # Every keyword VectorEnv (and vector_env) takes by name: its own, the env options and the
-# connection keywords.
-KEYWORDS = [*keywords(VectorEnv.__init__), *ENV_OPTIONS]
+# connection keywords (its signature shows them all).
+KEYWORDS = keywords(VectorEnv.__init__)

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::messages::{Action, Observation, Tensor, TensorData};
+use crate::messages::{Action, ActionType, MetaAction, Observation, Tensor, TensorData};
 
 /// Element types.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -111,34 +111,49 @@ impl Space {
 
     /// Checks an action against this space: a meta action against a Discrete, a
     /// continuous one against a Box of shape `[2]`. The error says which component is
-    /// wrong and what the bounds are.
+    /// wrong and what the bounds are. The server checks every action so, where it enters
+    /// (server/src/env/action.rs); clients check nothing more than the wire needs
+    /// (`Action::from_code`, `Action::from_values`), with these same messages.
     pub fn contains_action(&self, action: &Action) -> Result<(), String> {
         match (self, action) {
-            (&Space::Discrete { n, start }, &Action::Meta(choice)) => {
-                let (choice, end) = (i64::from(choice), start + i64::from(n));
-                if (start..end).contains(&choice) {
-                    Ok(())
-                } else {
-                    Err(format!("meta action {choice} is outside Discrete({n}): use {start}..={}", end - 1))
-                }
-            }
-            (Space::Box { low, high, shape, .. }, Action::Continuous(values)) => {
-                let n = values.len();
-                if shape[..] != [n as u32] || low.len() != n || high.len() != n {
-                    return Err(format!("a continuous action has {n} components, but the space has shape {shape:?}"));
-                }
-                for (i, ((&x, &lo), &hi)) in values.iter().zip(low).zip(high).enumerate() {
-                    if !x.is_finite() {
-                        return Err(format!("component {i} is {x}; it must be a finite number in [{lo}, {hi}]"));
-                    }
-                    if !(lo..=hi).contains(&x) {
-                        return Err(format!("component {i} is {x}, outside [{lo}, {hi}]"));
-                    }
-                }
-                Ok(())
-            }
+            (Space::Discrete { .. }, &Action::Meta(choice)) => self.contains_code(i64::from(choice)),
+            (Space::Box { .. }, Action::Continuous(values)) => self.contains_values(values),
             (space, action) => Err(format!("a {} action does not fit a {} space", action.kind(), space.kind())),
         }
+    }
+
+    /// Whether a Discrete space holds `choice`.
+    fn contains_code(&self, choice: i64) -> Result<(), String> {
+        let &Space::Discrete { n, start } = self else {
+            return Err(format!("a meta action does not fit a {} space", self.kind()));
+        };
+        let end = start + i64::from(n);
+        if (start..end).contains(&choice) {
+            Ok(())
+        } else {
+            Err(format!("meta action {choice} is outside Discrete({n}): use {start}..={}", end - 1))
+        }
+    }
+
+    /// Whether a Box space of one dimension holds `values`: its size, each finite and
+    /// within its bounds.
+    fn contains_values(&self, values: &[f32]) -> Result<(), String> {
+        let Space::Box { low, high, shape, .. } = self else {
+            return Err(format!("a continuous action does not fit a {} space", self.kind()));
+        };
+        let n = values.len();
+        if shape[..] != [n as u32] || low.len() != n || high.len() != n {
+            return Err(format!("a continuous action has {n} components, but the space has shape {shape:?}"));
+        }
+        for (i, ((&x, &lo), &hi)) in values.iter().zip(low).zip(high).enumerate() {
+            if !x.is_finite() {
+                return Err(format!("component {i} is {x}; it must be a finite number in [{lo}, {hi}]"));
+            }
+            if !(lo..=hi).contains(&x) {
+                return Err(format!("component {i} is {x}, outside [{lo}, {hi}]"));
+            }
+        }
+        Ok(())
     }
 
     fn kind(&self) -> &'static str {
@@ -155,6 +170,42 @@ impl Action {
         match self {
             Action::Meta(_) => "meta",
             Action::Continuous(_) => "continuous",
+        }
+    }
+
+    /// The meta action of a code a client was given as any integer. Refuses only a code
+    /// the wire cannot carry (outside `u32`), with the message the server's check gives
+    /// (every meta agent's space is `ActionType::Meta.space()`); the server checks the
+    /// rest.
+    pub fn from_code(code: i64) -> Result<Action, String> {
+        u32::try_from(code).map(Action::Meta).map_err(|_| {
+            let refused = ActionType::Meta.space().contains_code(code);
+            refused.err().unwrap_or_else(|| format!("meta action {code} does not fit the wire's u32"))
+        })
+    }
+
+    /// The continuous action of the numbers a client was given. Refuses only numbers the
+    /// wire cannot carry (not 2 of them), with the message the server's check gives (every
+    /// continuous agent's space is `ActionType::Continuous.space()`); the server checks the
+    /// rest (finite, within bounds).
+    pub fn from_values(values: &[f32]) -> Result<Action, String> {
+        <[f32; 2]>::try_from(values).map(Action::Continuous).map_err(|_| {
+            let refused = ActionType::Continuous.space().contains_values(values);
+            refused.err().unwrap_or_else(|| format!("a continuous action is 2 numbers, not {}", values.len()))
+        })
+    }
+}
+
+impl ActionType {
+    /// The action space of an agent acting so: Discrete(`MetaAction::ALL.len()`) for
+    /// meta actions; a Box of 2 in [-1, 1] (acceleration, preview offset) for continuous
+    /// ones. `EnvSpecs::action_spaces` carries it to clients.
+    pub fn space(self) -> Space {
+        match self {
+            ActionType::Meta => Space::Discrete { n: MetaAction::ALL.len() as u32, start: 0 },
+            ActionType::Continuous => {
+                Space::Box { low: vec![-1.0; 2], high: vec![1.0; 2], shape: vec![2], dtype: DType::F32 }
+            }
         }
     }
 }
@@ -217,6 +268,28 @@ mod tests {
         // Bounds that do not match the shape never let an action through.
         let short = Space::Box { low: vec![0.0], high: vec![1.0], shape: vec![2], dtype: DType::F32 };
         assert!(short.contains_action(&Action::Continuous([0.5, 9.0])).is_err());
+    }
+
+    #[test]
+    fn clients_refuse_only_what_the_wire_cannot_carry_with_the_servers_words() {
+        assert_eq!(Action::from_code(4), Ok(Action::Meta(4)));
+        assert_eq!(Action::from_code(7), Ok(Action::Meta(7)), "the server's to refuse");
+        assert_eq!(Action::from_code(-1), Err("meta action -1 is outside Discrete(5): use 0..=4".into()));
+        assert_eq!(
+            Action::from_code(1 << 40),
+            Err("meta action 1099511627776 is outside Discrete(5): use 0..=4".into())
+        );
+        assert_eq!(Action::from_values(&[0.5, -1.0]), Ok(Action::Continuous([0.5, -1.0])));
+        assert_eq!(Action::from_values(&[9.0, f32::NAN]).map(|_| ()), Ok(()), "the server's to refuse");
+        assert_eq!(
+            Action::from_values(&[0.0; 3]),
+            Err("a continuous action has 3 components, but the space has shape [2]".into())
+        );
+        assert_eq!(
+            ActionType::Continuous.space().contains_action(&Action::Continuous([1.5, 0.0])),
+            Err("component 0 is 1.5, outside [-1, 1]".into())
+        );
+        assert_eq!(ActionType::Meta.space(), Space::Discrete { n: 5, start: 0 });
     }
 
     #[test]

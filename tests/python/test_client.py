@@ -124,11 +124,13 @@ def test_inline_scenario_text_is_validated_like_a_file():
 def test_actions_outside_the_space_or_for_finished_agents_raise_value_errors():
     env = highway_arena.parallel_env("highway", max_cycles=3)
     env.reset(seed=0)
-    refused = [(7, "outside Discrete"), (-1, "outside Discrete"), (1.5, "an int"), ("1", "an int"), (True, "an int")]
+    # 7 is the server's to refuse, -1 the extension's (no u32 carries it): the same words.
+    outside = "meta action {} is outside Discrete\\(5\\): use 0..=4"
+    refused = [(7, outside.format(7)), (-1, outside.format(-1)), (1.5, "an int"), ("1", "an int"), (True, "an int")]
     for bad, message in refused:
         with pytest.raises(highway_arena.InvalidActionError, match=f"agent 'ego_0': .*{message}"):
             env.step({"ego_0": bad})
-    with pytest.raises(highway_arena.InvalidActionError, match="no agent named 'nobody'; the agents are"):
+    with pytest.raises(highway_arena.InvalidActionError, match="^no agent named 'nobody'; the agents are: ego_0$"):
         env.step({"nobody": 1})
     # Ints of every kind: Python, numpy scalars, one-element numpy arrays.
     env.step({"ego_0": np.int64(1)})
@@ -147,15 +149,24 @@ def test_continuous_actions_accept_lists_and_arrays_and_refuse_out_of_range():
     env.step({"ec_0": [1.0, 0.0]})
     env.step({"ec_0": np.array([0.5, -0.5], dtype=np.float32)})
     env.step({"ec_0": (np.float64(0.1), 0)})
-    with pytest.raises(highway_arena.InvalidActionError, match="expected 2 floats"):
+    with pytest.raises(highway_arena.InvalidActionError, match=r"has 3 components, but the space has shape \[2\]"):
         env.step({"ec_0": [0.0, 0.0, 0.0]})
-    with pytest.raises(highway_arena.InvalidActionError, match="expected 2 floats"):
+    with pytest.raises(highway_arena.InvalidActionError, match="expected numbers"):
         env.step({"ec_0": "fast"})
-    with pytest.raises(highway_arena.InvalidActionError, match="outside"):
+    with pytest.raises(highway_arena.InvalidActionError, match=r"agent 'ec_0': component 0 is 50, outside \[-1, 1\]"):
         env.step({"ec_0": np.array([50.0, 0.0])})
-    with pytest.raises(highway_arena.InvalidActionError, match="finite"):
+    with pytest.raises(highway_arena.InvalidActionError, match="component 0 is NaN; it must be a finite number"):
         env.step({"ec_0": [float("nan"), 0.0]})
     env.close()
+
+
+def test_a_batch_is_told_of_an_agent_its_env_does_not_have_by_the_server():
+    batch = highway_arena.batch_env("merge", num_envs=2)
+    batch.reset(seed=0)
+    with pytest.raises(highway_arena.InvalidActionError, match="^no agent named 'nobody'; the agents are: ec_0$") as raised:
+        batch.step([{"ec_0": 1}, {"nobody": 1}])
+    assert raised.value.code == "UnknownAgent"
+    batch.close()
 
 
 def test_observations_are_fresh_arrays_and_spaces_are_cached():

@@ -278,25 +278,20 @@ fn parse_actions(actions: &Bound<'_, PyDict>) -> PyResult<Vec<(String, Action)>>
     Ok(parsed)
 }
 
-/// An int (Python or numpy) is a meta action; a sequence of 2 floats a continuous one.
+/// An int (Python or numpy) is a meta action; a sequence of numbers a continuous one.
+/// Only what the wire cannot carry is refused here (`Action::from_code`,
+/// `Action::from_values`: the server's words, code InvalidAction); the server checks the
+/// rest, and whether the env has the agent.
 fn parse_action(agent: &str, action: &Bound<'_, PyAny>) -> PyResult<Action> {
-    if let Ok(index) = action.extract::<i64>() {
-        let count = MetaAction::ALL.len();
-        return u32::try_from(index).map(Action::Meta).map_err(|_| {
-            PyValueError::new_err(format!(
-                "agent '{agent}': action {index} is outside Discrete({count}): use 0..={}",
-                count - 1
-            ))
-        });
+    let refused = |message: String| ArenaError::new_err(("InvalidAction", format!("agent '{agent}': {message}")));
+    if let Ok(code) = action.extract::<i64>() {
+        return Action::from_code(code).map_err(refused);
     }
     if let Ok(values) = action.extract::<Vec<f32>>() {
-        let pair: [f32; 2] = values.as_slice().try_into().map_err(|_| {
-            PyValueError::new_err(format!("agent '{agent}': a continuous action has 2 values, got {}", values.len()))
-        })?;
-        return Ok(Action::Continuous(pair));
+        return Action::from_values(&values).map_err(refused);
     }
     Err(PyTypeError::new_err(format!(
-        "agent '{agent}': an action is an int (meta) or 2 floats (continuous), got {}",
+        "agent '{agent}': an action is an int (meta) or 2 numbers (continuous), got {}",
         action.get_type().name()?
     )))
 }

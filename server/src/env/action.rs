@@ -9,7 +9,7 @@
 //! a symmetric unit box): 1 is `CONTINUOUS_ACCEL_SCALE` and one lane width to the left;
 //! the world keeps the speed within [0, limit x `LEARNER_SPEED_FACTOR`].
 
-use arena_protocol::{Action, ActionType, DType, ErrorCode, MetaAction, Space};
+use arena_protocol::{Action, ActionType, ErrorCode, MetaAction, Space};
 
 use arena_sim::Command;
 use arena_sim::Decision;
@@ -29,21 +29,18 @@ pub const TARGET_SPEED_STEP: f64 = 5.0;
 /// ContinuousAction range, [-6, 6] m/s^2 (its ACCELERATION_RANGE).
 pub const CONTINUOUS_ACCEL_SCALE: f64 = 6.0;
 
-/// The action space of an agent driving with `kind`.
+/// The action space of an agent driving with `kind`: the protocol's
+/// (`ActionType::space`), which clients see in `EnvSpecs`.
 pub fn space(kind: ActionType) -> Space {
-    match kind {
-        ActionType::Meta => Space::Discrete { n: MetaAction::ALL.len() as u32, start: 0 },
-        ActionType::Continuous => {
-            Space::Box { low: vec![-1.0; 2], high: vec![1.0; 2], shape: vec![2], dtype: DType::F32 }
-        }
-    }
+    kind.space()
 }
 
-/// Refuses an action of the wrong type, out of its space, or not finite.
+/// Refuses an action of the wrong type, out of its space, or not finite: the one check
+/// an action gets (clients refuse only what the wire cannot carry).
 pub fn check(action: &Action, kind: ActionType) -> Result<(), (ErrorCode, String)> {
     match (action, kind) {
         (Action::Meta(_), ActionType::Meta) | (Action::Continuous(_), ActionType::Continuous) => {
-            space(kind).contains_action(action).map_err(|message| (ErrorCode::InvalidAction, message))
+            kind.space().contains_action(action).map_err(|message| (ErrorCode::InvalidAction, message))
         }
         (_, expected) => {
             Err((ErrorCode::WrongActionType, format!("this agent takes {expected:?} actions, got {action:?}")))

@@ -41,33 +41,31 @@ def observation(value):
     return {key: _tensor(tensor) for key, tensor in payload}
 
 
-def action(value, action_space: spaces.Space, agent: str):
-    """An int for Discrete (a Python int, a numpy integer, or an integer array of one
-    element), floats for Box (any sequence or array of the space's size)."""
-    if isinstance(action_space, spaces.Discrete):
+def action(value, action_space: spaces.Space | None, agent: str):
+    """The Python value of an action as the extension takes it: an int for a Discrete
+    space (a Python int, a numpy integer, or an integer array of one element), a flat
+    list of floats for a Box (any sequence or array). Nothing is checked against the
+    space here: the server checks every action, once, and the extension refuses what the
+    wire cannot carry, in the server's words. ``action_space`` None (an agent the env
+    does not have, which the server will name) takes either form."""
+    if isinstance(action_space, spaces.Discrete) or (action_space is None and _integral(value)):
         if type(value) is int:
-            index = value
-        else:
-            array = np.asarray(value)
-            if array.size != 1 or not np.issubdtype(array.dtype, np.integer):
-                raise InvalidActionError(
-                    "InvalidAction", f"agent {agent!r}: expected an int for {action_space}, got {value!r}"
-                )
-            index = int(array.reshape(()))
-        first = int(action_space.start)
-        if not first <= index < first + int(action_space.n):
-            last = first + int(action_space.n) - 1
-            raise InvalidActionError(
-                "InvalidAction", f"agent {agent!r}: action {index} is outside {action_space}: use {first}..{last}"
-            )
-        return index
+            return value
+        if not _integral(value):
+            raise InvalidActionError("InvalidAction", f"agent {agent!r}: expected an int for {action_space}, got {value!r}")
+        return int(np.asarray(value).reshape(()))
     try:
-        array = np.asarray(value, dtype=np.float32)
+        return np.asarray(value, dtype=np.float32).reshape(-1).tolist()
     except (TypeError, ValueError):
-        array = None
-    if array is None or array.size != int(np.prod(action_space.shape)):
+        kind = "numbers" if action_space is not None else "an int or numbers"
         raise InvalidActionError(
-            "InvalidAction",
-            f"agent {agent!r}: expected {int(np.prod(action_space.shape))} floats for {action_space}, got {value!r}",
-        )
-    return array.reshape(-1).tolist()
+            "InvalidAction", f"agent {agent!r}: expected {kind} for {action_space or 'an action'}, got {value!r}"
+        ) from None
+
+
+def _integral(value) -> bool:
+    """An int, or a numpy integer or integer array of one element (a bool is no int)."""
+    if type(value) is int:
+        return True
+    array = np.asarray(value)
+    return array.size == 1 and np.issubdtype(array.dtype, np.integer)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from . import _convert, _core
 from ._connection import Connection, env_options, keywords, split, takes_connection_keywords, takes_env_options
-from ._errors import InvalidActionError, translate, translated
+from ._errors import translate, translated
 from ._recordings import EnvRecordings, recording_meta
 from .parallel import reset_options, scenario_overrides
 
@@ -65,14 +65,11 @@ class BatchEnv:
         """``actions``: one dict per env. Returns one (observations, rewards,
         terminations, truncations, infos) per env; an env whose agents all finished is
         reset, and its tuple's observations are the new episode's first."""
-        wire = []
-        for per_env in actions:
-            for agent in per_env:
-                if agent not in self.action_spaces:
-                    raise InvalidActionError(
-                        "UnknownAgent", f"no agent named {agent!r}; the agents are {self.possible_agents}"
-                    )
-            wire.append({agent: _convert.action(a, self.action_spaces[agent], agent) for agent, a in per_env.items()})
+        # The server says whether the env has each agent and checks each action.
+        wire = [
+            {agent: _convert.action(a, self.action_spaces.get(agent), agent) for agent, a in per_env.items()}
+            for per_env in actions
+        ]
         results = self._connection.client.step_batch(self._envs, wire)
         out = []
         for i, (env, result) in enumerate(zip(self._envs, results)):

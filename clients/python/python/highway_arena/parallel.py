@@ -8,7 +8,7 @@ from pettingzoo import ParallelEnv as _ParallelEnv
 
 from . import _convert
 from ._connection import Connection, env_options, keywords, split, takes_connection_keywords, takes_env_options
-from ._errors import InvalidActionError, ScenarioError, translated
+from ._errors import ScenarioError, translated
 from ._recordings import recording_meta
 
 RENDER_MODES = ["human", "rgb_array", "ansi"]
@@ -176,13 +176,8 @@ class ParallelEnv(_ParallelEnv):
 
     @translated
     def step(self, actions):
-        wire = {}
-        for agent, action in actions.items():
-            if agent not in self.action_spaces:
-                raise InvalidActionError(
-                    "UnknownAgent", f"no agent named {agent!r}; the agents are {self.possible_agents}"
-                )
-            wire[agent] = _convert.action(action, self.action_spaces[agent], agent)
+        # The server says whether the env has each agent and checks each action.
+        wire = {agent: _convert.action(a, self.action_spaces.get(agent), agent) for agent, a in actions.items()}
         observations, rewards, terminations, truncations, infos, agents = self._env.step(wire)
         self.agents = list(agents)
         self.explanations = self._env.take_explanations()

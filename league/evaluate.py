@@ -33,7 +33,9 @@ CHECKPOINT_OF = {
     "highway-gt": "highway-gt",
 }
 
-BUILT_IN = [f"gt:{style}:{game}" for game in ("stackelberg", "nash") for style in ("aggressive", "normal", "conservative")]
+# Every style and game of the AV (the protocol's names), Stackelberg's first as the league
+# was first written, then IDM.
+BUILT_IN = [f"gt:{style}:{game}" for game in reversed(highway_arena.GAMES) for style in highway_arena.STYLES]
 BUILT_IN.append("idm")
 
 

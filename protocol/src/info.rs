@@ -120,6 +120,13 @@ impl EndReason {
     pub fn from_code(code: i64) -> Option<EndReason> {
         Self::ALL.get(usize::try_from(code).ok()?).copied()
     }
+
+    /// Whether an episode that ended so failed: the learner crashed or left the road (over
+    /// its edge or past its lane's end); reaching the road's end or the time limit is no
+    /// failure.
+    pub fn failed(self) -> bool {
+        matches!(self, EndReason::Collision | EndReason::OffRoad | EndReason::LaneEnd)
+    }
 }
 
 /// Speed along the vehicle's heading (m/s).
@@ -241,6 +248,8 @@ mod tests {
         }
         assert_eq!(EndReason::from_code(6), None);
         assert_eq!(EndReason::from_code(-1), None);
+        let failed: Vec<_> = EndReason::ALL.into_iter().filter(|r| r.failed()).map(EndReason::name).collect();
+        assert_eq!(failed, ["collision", "off_road", "lane_end"]);
         let mut info = Info::default();
         info.push(END_REASON, InfoValue::I64(3));
         info.push(EPISODE_DONE, InfoValue::Bool(true));

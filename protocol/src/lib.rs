@@ -16,6 +16,7 @@
 //!   says how clients take each and what it does (docs/protocol.md's list is written from it).
 //! - [`MetaAction`], [`ActionType`], [`ObservationKind`], [`Style`], [`Game`]: closed
 //!   sets of choices, each with `ALL`, `name`, `Display` and `FromStr`.
+//! - [`palette`]: the colours of every picture of a world (frames, recordings).
 //! - [`bounds`]: the size of every string and list a request may carry.
 //! - [`Space`]: Box, Discrete and Dict specs, with checks for observations and actions.
 //! - [`WorldStart`] / [`WorldFrame`]: the world as a recording sees it (road geometry in
@@ -50,6 +51,7 @@ pub mod keys;
 mod messages;
 mod names;
 mod options;
+pub mod palette;
 #[cfg(feature = "session")]
 pub mod session;
 mod spaces;

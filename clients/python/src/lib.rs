@@ -16,9 +16,9 @@ use arena_eval::stats::Bootstrap;
 use arena_protocol::keys::DEFAULT_PREFIX;
 use arena_protocol::session::{ConnectionFlags, DEFAULT_CONNECT_TIMEOUT, DEFAULT_ENDPOINT, DEFAULT_TIMEOUT, Mode};
 use arena_protocol::{
-    Action, ActionType, CREATE_OPTIONS, CreateOptions, DecisionExplained, EndReason, Frame, Game, Given, Info,
-    InfoValue, MetaAction, Observation, ObservationKind, OptionKind, RenderMode, Space, StepReply, Tensor, TensorData,
-    WorldFrame, WorldStart,
+    Action, ActionType, BuiltinPolicy, CREATE_OPTIONS, CreateOptions, DecisionExplained, EndReason, Frame, Game, Given,
+    Info, InfoValue, MetaAction, Observation, ObservationKind, OptionKind, RenderMode, Space, StepReply, Style, Tensor,
+    TensorData, WorldFrame, WorldStart,
 };
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -192,6 +192,17 @@ impl Client {
     /// Closes the session; servers then close this client's envs. Idempotent.
     fn close(&self, py: Python<'_>) -> PyResult<()> {
         py.detach(|| self.inner.close()).map_err(to_py_err)
+    }
+}
+
+/// A built-in policy's name read as the server reads it (`BuiltinPolicy`'s `FromStr`):
+/// ("gt", style or None for the learner's own, game) or ("idm", None, None); an unknown
+/// one is a ValueError listing the forms.
+#[pyfunction]
+fn builtin_policy(name: &str) -> PyResult<(&'static str, Option<&'static str>, Option<&'static str>)> {
+    match name.parse::<BuiltinPolicy>().map_err(PyValueError::new_err)? {
+        BuiltinPolicy::Gt { style, game } => Ok(("gt", style.map(Style::name), Some(game.name()))),
+        BuiltinPolicy::Idm => Ok(("idm", None, None)),
     }
 }
 
@@ -907,6 +918,21 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("ACTION_TYPES", ActionType::ALL.map(ActionType::name).to_vec())?;
     m.add("OBSERVATIONS", ObservationKind::ALL.map(ObservationKind::name).to_vec())?;
     m.add("GAMES", Game::ALL.map(Game::name).to_vec())?;
+    m.add("STYLES", Style::ALL.map(Style::name).to_vec())?;
+    // The colours of frames and recordings, by name; "gt" by style.
+    let palette = PyDict::new(m.py());
+    for (name, rgb) in arena_protocol::palette::NAMED {
+        palette.set_item(name, (rgb[0], rgb[1], rgb[2]))?;
+    }
+    let gt = PyDict::new(m.py());
+    for style in Style::ALL {
+        let [r, g, b] = arena_protocol::palette::gt(style);
+        gt.set_item(style.name(), (r, g, b))?;
+    }
+    palette.set_item("gt", gt)?;
+    m.add("PALETTE", palette)?;
+    let failed = EndReason::ALL.into_iter().filter(|reason| reason.failed());
+    m.add("FAILED_END_REASONS", failed.map(EndReason::name).collect::<Vec<_>>())?;
     // The create options (name, default, what it takes, what it does), declared once in
     // arena-protocol: the Python package builds its keywords and their help from them.
     let options = CREATE_OPTIONS.iter().map(|option| {
@@ -919,6 +945,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("CREATE_OPTIONS", PyList::new(m.py(), options.collect::<Vec<_>>())?)?;
     m.add_class::<Client>()?;
     m.add_class::<Env>()?;
+    m.add_function(wrap_pyfunction!(builtin_policy, m)?)?;
     m.add_function(wrap_pyfunction!(budget_report, m)?)?;
     m.add_function(wrap_pyfunction!(eval_report, m)?)?;
     m.add_function(wrap_pyfunction!(league_add, m)?)?;

@@ -4,12 +4,16 @@
 //! followed car's name and speed, its end reason once its episode ended, lane ends
 //! marked, and a legend of who drives which colour, text scaled with the frame) and
 //! `ansi` (lanes as rows of text). The window follows one vehicle, the first learner
-//! unless the client names another. Learners are green, game-theoretic cars blue, IDM cars
-//! yellow, crashed red; the followed car has a white outline.
+//! unless the client names another. The colours are the protocol's `palette`, as the
+//! recordings': learners green, game-theoretic cars blue by style, IDM cars yellow,
+//! crashed red; the followed car has a white outline.
 
-use arena_protocol::Frame;
+use arena_protocol::palette::{self, ASPHALT, BANNER, CRASHED, GRASS, IDM, LEARNER, MARKING, Rgb, TEXT};
+use arena_protocol::{EndReason, Frame, Style};
 
 use arena_sim::{Driver, Ending, LaneId, Status, Vehicle, VehicleId, World};
+
+use super::style_of;
 
 /// Metres of road across the width of an `rgb` frame.
 const RGB_WINDOW: f64 = 120.0;
@@ -32,28 +36,24 @@ const OUTLINE: f64 = 0.35;
 const ANSI_METRES_PER_CHAR: f64 = 2.0;
 const ANSI_HALF_WIDTH: usize = 40;
 
-const GRASS: [u8; 3] = [60, 110, 60];
-const ASPHALT: [u8; 3] = [90, 90, 90];
-const MARKING: [u8; 3] = [235, 235, 235];
-const LEARNER: [u8; 3] = [50, 200, 80];
-const GT: [u8; 3] = [60, 120, 235];
-const IDM: [u8; 3] = [230, 200, 60];
-const CRASHED: [u8; 3] = [220, 40, 40];
-const TEXT: [u8; 3] = [255, 255, 255];
 /// The lane-end marker's two colours, in a checker.
-const LANE_END: [[u8; 3]; 2] = [[200, 30, 30], [250, 250, 250]];
-/// Behind the end reason.
-const BANNER: [u8; 3] = [150, 20, 20];
+const LANE_END: [Rgb; 2] = [palette::LANE_END, palette::ENDED];
 
-/// The legend, in the order drawn: each colour and its label.
-const LEGEND: [([u8; 3], &str); 5] =
-    [(LEARNER, "LEARNER"), (GT, "GT"), (IDM, "IDM"), (CRASHED, "CRASH"), (LANE_END[0], "LANE END")];
+/// The legend, in the order drawn: each colour and its label (the game-theoretic cars'
+/// swatch is the normal style's).
+const LEGEND: [(Rgb, &str); 5] = [
+    (LEARNER, "LEARNER"),
+    (palette::gt(Style::Normal), "GT"),
+    (IDM, "IDM"),
+    (CRASHED, "CRASH"),
+    (LANE_END[0], "LANE END"),
+];
 
-fn colour(vehicle: &Vehicle) -> [u8; 3] {
+fn colour(vehicle: &Vehicle) -> Rgb {
     match (vehicle.status, &vehicle.driver) {
         (Status::Crashed, _) => CRASHED,
         (_, Driver::Agent(_)) => LEARNER,
-        (_, Driver::Gt(_)) => GT,
+        (_, Driver::Gt(_)) => palette::gt(style_of(vehicle.style)),
         (_, Driver::Idm) => IDM,
     }
 }
@@ -66,15 +66,16 @@ fn focus_point(world: &World, focus: Option<VehicleId>) -> (f64, f64) {
     }
 }
 
-/// The end reason shown for a vehicle whose episode ended in the world (a learner that
-/// ran out of time is the env's to name).
+/// The end reason shown for a vehicle whose episode ended in the world, by its protocol
+/// name (`EndReason::name`; a learner that ran out of time is the env's to name).
 pub fn ending_name(ending: Ending) -> &'static str {
     match ending {
-        Ending::Collision => "COLLISION",
-        Ending::LaneEnd => "LANE END",
-        Ending::OffRoad => "OFF ROAD",
-        Ending::RoadEnd => "ROAD END",
+        Ending::Collision => EndReason::Collision,
+        Ending::LaneEnd => EndReason::LaneEnd,
+        Ending::OffRoad => EndReason::OffRoad,
+        Ending::RoadEnd => EndReason::RoadEnd,
     }
+    .name()
 }
 
 /// The metres-to-pixels map of a frame centred on a global point, north up.
@@ -160,7 +161,7 @@ pub fn rgb(world: &World, focus: Option<VehicleId>, end: Option<&str>, (height, 
 /// The paint of the ground at (s, d), the nearest point of the reference line to a
 /// pixel: grass, asphalt, a lane line or a lane-end marker. `pixel` is a pixel's size in
 /// metres.
-fn ground(world: &World, (s, d): (f64, f64), pixel: f64) -> [u8; 3] {
+fn ground(world: &World, (s, d): (f64, f64), pixel: f64) -> Rgb {
     let road = world.road();
     // The nearest point of the reference line is clamped to the road: a point before its
     // start or past its end projects onto an end exactly, and is not road.
@@ -190,7 +191,8 @@ fn caption(canvas: &mut Canvas, world: &World, focus: Option<VehicleId>, end: Op
     }
     canvas.text(2 * k, 2 * k, &text, TEXT);
     if let Some(end) = end {
-        let label = format!("END: {end}");
+        // Written as words: `lane_end` is LANE END (the font has capitals only).
+        let label = format!("END: {}", end.replace('_', " "));
         let width = canvas.text_width(&label);
         let x = canvas.width.saturating_sub(width + 4 * k);
         canvas.rect(x, k, width + 3 * k, 7 * k, BANNER);
@@ -211,7 +213,7 @@ fn caption(canvas: &mut Canvas, world: &World, focus: Option<VehicleId>, end: Op
 }
 
 /// Paints an oriented box (centre x, y and heading, half length and width, metres).
-fn draw_box(canvas: &mut Canvas, camera: &Camera, (x, y, heading): (f64, f64, f64), half: (f64, f64), paint: [u8; 3]) {
+fn draw_box(canvas: &mut Canvas, camera: &Camera, (x, y, heading): (f64, f64, f64), half: (f64, f64), paint: Rgb) {
     let (row, col) = camera.pixel_of((x, y));
     let reach = (half.0 + half.1) * camera.scale;
     let rows = (row - reach).floor().max(0.0) as u32..(row + reach).ceil().clamp(0.0, canvas.height as f64) as u32;
@@ -258,14 +260,14 @@ struct Canvas<'a> {
 }
 
 impl Canvas<'_> {
-    fn put(&mut self, x: u32, y: u32, paint: [u8; 3]) {
+    fn put(&mut self, x: u32, y: u32, paint: Rgb) {
         if x < self.width && y < self.height {
             let at = ((y * self.width + x) * 3) as usize;
             self.pixels[at..at + 3].copy_from_slice(&paint);
         }
     }
 
-    fn rect(&mut self, x: u32, y: u32, w: u32, h: u32, paint: [u8; 3]) {
+    fn rect(&mut self, x: u32, y: u32, w: u32, h: u32, paint: Rgb) {
         for row in y..y + h {
             for col in x..x + w {
                 self.put(col, row, paint);
@@ -275,7 +277,7 @@ impl Canvas<'_> {
 
     /// Writes `text` in a 3 x 5 font, each font pixel `size` pixels square, from (x, y);
     /// returns the x after it.
-    fn text(&mut self, mut x: u32, y: u32, text: &str, paint: [u8; 3]) -> u32 {
+    fn text(&mut self, mut x: u32, y: u32, text: &str, paint: Rgb) -> u32 {
         let k = self.size;
         for c in text.chars() {
             let glyph = glyph(c);

@@ -374,6 +374,20 @@ fn rgb_frames_draw_a_bend_as_a_bend() {
 }
 
 #[test]
+fn rgb_frames_paint_a_game_theoretic_car_in_its_styles_blue() {
+    let mut env = env("merge", CreateOptions { render_size: Some((300, 600)), ..CreateOptions::default() });
+    let styled = |style: &str| overriding(&[("vehicle.ac.driver.style", OptionValue::Str(style.into()))]);
+    let mut centre = |style: &str| {
+        env.reset(Some(0), &styled(style)).unwrap();
+        pixel(&env.render(RenderMode::RgbArray, Some("ac")).unwrap(), 150, 300)
+    };
+    // The recordings' blues (protocol/src/palette.rs), darker the bolder.
+    assert_eq!(centre("aggressive"), [40, 70, 200]);
+    assert_eq!(centre("normal"), [60, 120, 235]);
+    assert_eq!(centre("conservative"), [120, 190, 250]);
+}
+
+#[test]
 fn rgb_frames_mark_lane_ends_and_show_how_the_episode_ended() {
     let mut env = env("merge", CreateOptions { render_size: Some((300, 600)), ..CreateOptions::default() });
     env.reset(Some(0), NO_OPTIONS).unwrap();

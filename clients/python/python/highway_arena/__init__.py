@@ -16,7 +16,8 @@ Every agent's infos have the keys ``INFO_KEYS`` (then the ``expert_*`` ones with
 ``expert=``), in that order, on reset and on every step, all numbers or bools:
 ``info["end_reason"]`` is an index into ``END_REASONS`` (0, "running", until the agent's
 last step), and the ``episode_*`` figures are zero until ``info["episode_done"]``.
-Meta actions are indices into ``META_ACTIONS``.
+Meta actions are indices into ``META_ACTIONS``; ``STYLES`` and ``GAMES`` name the
+built-in AV's driving styles and games (``policy="gt:<style>:<game>"``).
 
 ``connect`` defaults to $HIGHWAY_ARENA_CONNECT, else tcp/127.0.0.1:7447 (where
 ``arena-server`` listens by default); ``launch_server()`` starts one for you. Every
@@ -44,7 +45,7 @@ from ._errors import (
 )
 from . import _connection
 from ._connection import CONNECTION_KEYWORDS, ENV_OPTIONS, default_connect
-from ._core import END_REASONS, INFO_KEYS, META_ACTIONS
+from ._core import END_REASONS, GAMES, INFO_KEYS, META_ACTIONS, STYLES
 from ._server import LocalServer, find_server_binary, launch_server, serving
 from .batch import BatchEnv
 from .datasets import RECORD_SEED, record, training_seeds
@@ -58,9 +59,11 @@ __all__ = [
     "CONNECTION_KEYWORDS",
     "ENV_OPTIONS",
     "END_REASONS",
+    "GAMES",
     "INFO_KEYS",
     "META_ACTIONS",
     "RECORD_SEED",
+    "STYLES",
     "ArenaError",
     "ArenaTimeoutError",
     "BatchEnv",

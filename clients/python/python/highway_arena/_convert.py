@@ -3,10 +3,17 @@ Python actions -> what the extension takes."""
 
 from __future__ import annotations
 
+import enum
+
 import numpy as np
 from gymnasium import spaces
 
+from ._core import END_REASONS
 from ._errors import InvalidActionError
+
+# The end reasons by name (``EndReason.COLLISION``), made from the protocol's list, so a
+# misspelt one fails where it is written instead of matching nothing.
+EndReason = enum.IntEnum("EndReason", [(name.upper(), code) for code, name in enumerate(END_REASONS)])
 
 
 def space(spec: dict) -> spaces.Space:

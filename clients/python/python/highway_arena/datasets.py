@@ -38,7 +38,9 @@ from . import _core
 from ._connection import keywords, split, takes_connection_keywords
 from .parallel import refuse_unknown
 
-STYLES = ("aggressive", "normal", "conservative")
+# The protocol's names (arena-protocol writes each once).
+STYLES = tuple(_core.STYLES)
+GAMES = tuple(_core.GAMES)
 
 # The first seed ``record`` uses by default: far from ``evaluate``'s and ``arena eval``'s
 # default (0), so that the documented record -> clone -> evaluate path tests a cloned
@@ -52,11 +54,11 @@ def training_seeds(dataset) -> list:
     each episode's seed; an episode without one is left out)."""
     metadata = dataset.storage.get_episode_metadata(dataset.episode_indices)
     return [int(m["seed"]) for m in metadata if m.get("seed") is not None]
-GAMES = ("nash", "stackelberg")
 ENTRY_POINT = "highway_arena.single:GymEnv"
-# The end reasons of a failed episode (docs/rewards.md): the learner crashed or left the
-# road; road_end and time_limit are not failures. Infos carry an end reason as its index.
-FAILURES = ("collision", "off_road", "lane_end")
+# The end reasons of a failed episode, as the protocol says (`EndReason::failed`): the
+# learner crashed or left the road; road_end and time_limit are not failures. Infos carry
+# an end reason as its index.
+FAILURES = tuple(_core.FAILED_END_REASONS)
 
 
 def end_reason(info: dict) -> str:
@@ -84,17 +86,19 @@ class Expert:
 
 def parse_expert(expert: str) -> Expert:
     """``"gt:<style>:<game>"`` (style aggressive|normal|conservative, game
-    nash|stackelberg), or ``"expert"``: the learner's own style, Stackelberg."""
-    if expert == "expert":
-        return Expert(game="stackelberg", style=None)
-    parts = expert.split(":") if isinstance(expert, str) else []
-    if len(parts) != 3 or parts[0] != "gt" or parts[1] not in STYLES or parts[2] not in GAMES:
+    nash|stackelberg), or ``"expert"``: the learner's own style, Stackelberg; read as the
+    server reads a built-in policy."""
+    try:
+        kind, style, game = _core.builtin_policy(expert)
+    except (TypeError, ValueError):
+        kind = None
+    if kind != "gt":
         raise ValueError(
             f"expert={expert!r} is not an expert: write 'gt:<style>:<game>' with style one of "
             f"{'|'.join(STYLES)} and game one of {'|'.join(GAMES)} (e.g. 'gt:normal:stackelberg'), "
             "or 'expert' (the learner's own style, Stackelberg)"
         )
-    return Expert(game=parts[2], style=parts[1])
+    return Expert(game=game, style=style)
 
 
 def registered_scenarios() -> list[str]:
@@ -213,8 +217,8 @@ def record(
             f"unknown scenario {scenario!r}: record needs one registered as highway_arena/<scenario>-v0 "
             f"(so the dataset can recover its env); those are {scenarios}"
         )
-    if action_type not in ("meta", "continuous"):
-        raise ValueError(f"action_type must be 'meta' or 'continuous', not {action_type!r}")
+    if action_type not in _core.ACTION_TYPES:
+        raise ValueError(f"action_type must be one of {', '.join(_core.ACTION_TYPES)}, not {action_type!r}")
     dataset_id = dataset_id or f"highway_arena/{scenario}/{parsed.name}-v0"
 
     probe = GymEnv(scenario, agent=agent, action_type=action_type, max_cycles=max_cycles, **connection)

@@ -50,26 +50,28 @@ import uuid
 import numpy as np
 
 from . import _convert
-from ._core import END_REASONS
+from ._core import END_REASONS, PALETTE
 
 FORMAT = "highway-arena recording"
 FORMAT_VERSION = 2  # 2: the AV's decisions explained (explain=True)
 TIMELINE = "sim_time"
 STEP_TIMELINE = "step"
 
-# Colours: learners green (whoever drives them: with `policy` the AV does), the
-# game-theoretic AV blue by style (darker is bolder), IDM yellow, a crashed car red, one
-# that left the road or ended its lane grey.
-LEARNER = (50, 200, 80)
-GT = {"aggressive": (40, 70, 200), "normal": (60, 130, 240), "conservative": (120, 190, 250)}
-IDM = (230, 200, 60)
-CRASHED = (220, 40, 40)
-GONE = (150, 150, 150)
-ASPHALT = (90, 90, 90)
-MARKING = (235, 235, 235)
-LANE_END = (220, 40, 40)
-PLAN = (250, 140, 30)
-PREDICTION = (200, 80, 220)
+# Colours, the protocol's palette (the server's frames paint with it too): learners green
+# (whoever drives them: with `policy` the AV does), the game-theoretic AV blue by style
+# (darker is bolder), IDM yellow, a crashed car red, one that left the road or ended its
+# lane grey.
+LEARNER = PALETTE["learner"]
+GT = PALETTE["gt"]
+IDM = PALETTE["idm"]
+CRASHED = PALETTE["crashed"]
+GONE = PALETTE["gone"]
+ENDED = PALETTE["ended"]
+ASPHALT = PALETTE["asphalt"]
+MARKING = PALETTE["marking"]
+LANE_END = PALETTE["lane_end"]
+PLAN = PALETTE["plan"]
+PREDICTION = PALETTE["prediction"]
 
 VEHICLE_COLUMNS = ("x", "y", "heading", "s", "d", "speed", "accel", "lane", "target_lane", "end")
 
@@ -100,14 +102,14 @@ def _frames(raw: dict) -> dict:
 
 
 def _colour(driver: dict, end: int) -> tuple:
-    if end == END_REASONS.index("collision"):
+    if end == _convert.EndReason.COLLISION:
         return CRASHED
     if end != 0:
         return GONE
     if driver["learner"]:
         return LEARNER
     if driver["driver"] == "gt":
-        return GT.get(driver["style"], GT["normal"])
+        return GT[driver["style"]]
     return IDM
 
 
@@ -304,7 +306,7 @@ class Recording:
                     rr.Points2D(
                         [place],
                         radii=1.5,
-                        colors=[CRASHED if reason == "collision" else (250, 250, 250)],
+                        colors=[CRASHED if end == _convert.EndReason.COLLISION else ENDED],
                         labels=[f"{agent}: {reason}"],
                     ),
                 )

@@ -6,6 +6,8 @@
 
 use std::fmt::Write as _;
 
+use arena_protocol::{Game, Style};
+
 use super::tables::{number, percent};
 use super::{Estimate, FIGURES, Summary};
 
@@ -22,8 +24,8 @@ pub struct Opponent {
 /// then IDM.
 pub fn opponents() -> Vec<Opponent> {
     let mut all = Vec::new();
-    for style in ["aggressive", "normal", "conservative"] {
-        for game in ["nash", "stackelberg"] {
+    for style in Style::ALL.map(Style::name) {
+        for game in Game::ALL.map(Game::name) {
             all.push(Opponent {
                 name: format!("gt:{style}:{game}"),
                 overrides: vec![("opponents.style".into(), style.into()), ("opponents.game".into(), game.into())],

@@ -77,6 +77,7 @@ pub use world::{
 /// schema with no strings, `info::SCHEMA`; 6: `collision_with`, `at_fault` and the jerk
 /// figures in infos; 7: recordings, `CreateOptions::record`, `RequestBody::Record`, the
 /// world in reset and step replies, `world`; 8: `CreateOptions::explain`,
-/// `StepReply::explain`; 9: `Render::follow`, `RequestBody::Statistics`; 10: a snapshot
-/// holds the env's and the world's state as they are, without the scene drivers read).
+/// `StepReply::explain`; 9: `Render::follow`, `RequestBody::Statistics`; 10:
+/// `CreateOptions::render_window`, and a snapshot holds the env's and the world's state as
+/// they are, without the scene drivers read).
 pub const PROTOCOL_VERSION: u16 = 10;

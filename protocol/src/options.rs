@@ -230,6 +230,12 @@ create_options! {
     /// Every game-theoretic decision explained (version 8): step replies carry them in
     /// `explain` ("The AV explained"); each decision then costs about twice as much.
     explain: bool,
+    /// Metres of road across the width of `RgbArray` frames, default 120 (version 10;
+    /// highway-env's screen width over its `scaling`): more shows more of the traffic,
+    /// fewer zooms in. Within 10..=10000, and at most 20 pixels a metre unless it is 120
+    /// or more (a frame 600 wide shows at least 30 m), so that a frame costs no more than
+    /// a default one may.
+    render_window: Option<u32>,
 }
 
 #[cfg(test)]
@@ -297,7 +303,8 @@ mod tests {
                 "policy",
                 "diagnostics",
                 "record",
-                "explain"
+                "explain",
+                "render_window"
             ]
         );
         assert_eq!(option("render_size").wire, "Option<(u32, u32)>");
@@ -310,7 +317,7 @@ mod tests {
         (option("max_cycles").set)(&mut options, Given::Count(9)).unwrap();
         assert_eq!(options, CreateOptions { explain: true, max_cycles: Some(9), ..CreateOptions::default() });
         let last = encode(&options);
-        assert_eq!(&last[last.len() - 3..], [0, 0, 1], "diagnostics, record, explain end the bytes");
+        assert_eq!(&last[last.len() - 4..], [0, 0, 1, 0], "diagnostics, record, explain, render_window end the bytes");
     }
 
     #[test]

@@ -552,6 +552,7 @@ def test_the_env_options_are_the_protocols_create_options_but_the_two_taken_thei
         "policy",
         "diagnostics",
         "explain",
+        "render_window",
     ]
     assert highway_arena.ENV_OPTIONS["max_cycles"] is None and highway_arena.ENV_OPTIONS["explain"] is False
 
@@ -566,6 +567,7 @@ WRONG_OPTION = {
     "render_size": ((8, 8), highway_arena.ScenarioError, r"render_size \(8, 8\) must be within 16..=4096"),
     "expert": ("pareto", ValueError, r"^expert: unknown game 'pareto': use one of nash, stackelberg"),
     "policy": ("calm", ValueError, r"^policy: unknown built-in policy 'calm'"),
+    "render_window": (5, highway_arena.ScenarioError, r"render_window 5 must be within 10..=10000 \(m\)"),
 }
 
 

@@ -69,3 +69,26 @@ def test_frames_follow_the_named_vehicle():
     with pytest.raises(highway_arena.ArenaError, match="no vehicle named 'nobody'"):
         env.render()
     env.close()
+
+
+def test_the_render_window_is_the_metres_across_a_frame():
+    def learner_pixels(**options):
+        env = highway_arena.parallel_env("merge", render_mode="rgb_array", **options)
+        env.reset(seed=0)
+        frame = env.render()
+        env.close()
+        # Above the legend, whose swatch is learner green too.
+        return int((frame[:270] == [50, 200, 80]).all(axis=2).sum())
+
+    default = learner_pixels()
+    assert default == learner_pixels(render_window=120)
+    # Twice the metres across: the learner's car (5 x 2 m) takes a quarter of the pixels.
+    assert 3.5 < default / learner_pixels(render_window=240) < 4.5
+    assert 0.2 < default / learner_pixels(render_window=60) < 0.3
+    with pytest.raises(highway_arena.ScenarioError, match=r"render_window 20 makes frames 600 pixels wide draw more "):
+        highway_arena.parallel_env("merge", render_window=20)
+    # The default's 120 m is never refused, however wide the frame; fewer metres than that are
+    # on a frame that would draw more than 20 pixels a metre.
+    highway_arena.parallel_env("merge", render_size=(16, 4096), render_window=120).close()
+    with pytest.raises(highway_arena.ScenarioError, match=r"ask for at least 120 m, or smaller frames"):
+        highway_arena.parallel_env("merge", render_size=(16, 4096), render_window=119)

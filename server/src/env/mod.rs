@@ -109,6 +109,8 @@ pub struct Env {
     observation: ObservationKind,
     max_cycles: u32,
     render_size: (u32, u32),
+    /// Metres across an RGB frame (`render::window`).
+    render_window: f64,
     expert: Option<Game>,
     /// The built-in driver of every learner, when the server drives them.
     policy: Option<BuiltinPolicy>,
@@ -218,6 +220,8 @@ impl Env {
                 ),
             ));
         }
+        let render_window =
+            render::window(options.render_window, render_size.1).map_err(|e| error(ErrorCode::InvalidScenario, e))?;
         let agents = scenario
             .agents()
             .map(|spec| AgentSlot {
@@ -245,6 +249,7 @@ impl Env {
             observation: options.observation.unwrap_or(ObservationKind::Kinematics),
             max_cycles,
             render_size,
+            render_window,
             expert: options.expert.map(game),
             policy: options.policy,
             diagnostics: options.diagnostics,
@@ -611,7 +616,8 @@ impl Env {
         };
         Ok(match mode {
             RenderMode::RgbArray => {
-                render::rgb(world, focus, focus.and_then(|id| self.end_shown(id)), self.render_size)
+                let end = focus.and_then(|id| self.end_shown(id));
+                render::rgb(world, focus, end, self.render_size, self.render_window)
             }
             RenderMode::Ansi => Frame::Ansi(render::ansi(world, focus)),
         })

@@ -15,8 +15,17 @@ use arena_sim::{Driver, Ending, LaneId, Status, Vehicle, VehicleId, World};
 
 use super::style_of;
 
-/// Metres of road across the width of an `rgb` frame.
-const RGB_WINDOW: f64 = 120.0;
+/// Metres of road across the width of an `rgb` frame, unless the env's `render_window`
+/// says otherwise.
+const RGB_WINDOW: u32 = 120;
+/// The window's bounds (m): a frame always shows a car whole, and a road of the longest
+/// sections fits.
+const WINDOWS: std::ops::RangeInclusive<u32> = 10..=10_000;
+/// The most pixels a metre of road may take in an asked window: a car's box costs its area
+/// in pixels, so this bounds a frame's cost whatever the window (the default window on a
+/// 2300 x 2300 frame, about the largest a reply carries, has 19; docs/reliability.md
+/// measures that). The default window is never refused, however wide the frame.
+const MAX_PIXELS_PER_METRE: u32 = 20;
 /// Frame height (pixels) per step of text size: text is drawn in a 3 x 5 font, each font
 /// pixel `height / TEXT_HEIGHT_PER_SIZE` pixels square (at least 1), so a legend stays
 /// legible at 600 x 1200 and fits at 60 x 120.
@@ -56,6 +65,25 @@ fn colour(vehicle: &Vehicle) -> Rgb {
         (_, Driver::Gt(_)) => palette::gt(style_of(vehicle.style)),
         (_, Driver::Idm) => IDM,
     }
+}
+
+/// The metres across the width of frames `width` pixels wide: `asked` (the env's
+/// `render_window`) if it is within `WINDOWS` and leaves at most `MAX_PIXELS_PER_METRE`
+/// (or is at least `RGB_WINDOW`), else what is wrong with it; `RGB_WINDOW` if none was
+/// asked.
+pub fn window(asked: Option<u32>, width: u32) -> Result<f64, String> {
+    let Some(metres) = asked else { return Ok(f64::from(RGB_WINDOW)) };
+    if !WINDOWS.contains(&metres) {
+        return Err(format!("render_window {metres} must be within {}..={} (m)", WINDOWS.start(), WINDOWS.end()));
+    }
+    let least = width.div_ceil(MAX_PIXELS_PER_METRE).min(RGB_WINDOW);
+    if metres < least {
+        return Err(format!(
+            "render_window {metres} makes frames {width} pixels wide draw more than {MAX_PIXELS_PER_METRE} pixels a \
+             metre; ask for at least {least} m, or smaller frames"
+        ));
+    }
+    Ok(f64::from(metres))
 }
 
 /// The followed vehicle's (s, d), or the first vehicle's s on the reference line.
@@ -104,12 +132,19 @@ impl Camera {
     }
 }
 
-/// A top-down picture in world coordinates, `size` = (height, width) in pixels, following
-/// `focus`; `end` is the followed car's end reason once its episode ended.
-pub fn rgb(world: &World, focus: Option<VehicleId>, end: Option<&str>, (height, width): (u32, u32)) -> Frame {
+/// A top-down picture in world coordinates, `size` = (height, width) in pixels and
+/// `window` metres across (`window`'s), following `focus`; `end` is the followed car's
+/// end reason once its episode ended.
+pub fn rgb(
+    world: &World,
+    focus: Option<VehicleId>,
+    end: Option<&str>,
+    (height, width): (u32, u32),
+    window: f64,
+) -> Frame {
     let (s0, d0) = focus_point(world, focus);
     let centre = world.road().to_global(s0, d0, 0.0);
-    let camera = Camera { centre: (centre.x, centre.y), scale: width as f64 / RGB_WINDOW, size: (height, width) };
+    let camera = Camera { centre: (centre.x, centre.y), scale: width as f64 / window, size: (height, width) };
     let mut pixels = vec![0u8; (height * width * 3) as usize];
     let (road, pixel) = (world.road(), 1.0 / camera.scale);
     // A point twice the road's width from its reference line is grass wherever it projects.
@@ -134,7 +169,7 @@ pub fn rgb(world: &World, focus: Option<VehicleId>, end: Option<&str>, (height, 
         }
     }
     let mut canvas = Canvas { pixels: &mut pixels, height, width, size: (height / TEXT_HEIGHT_PER_SIZE).max(1) };
-    let reach = RGB_WINDOW.hypot(height as f64 / camera.scale) / 2.0 + 5.0;
+    let reach = window.hypot(height as f64 / camera.scale) / 2.0 + 5.0;
     // A car that left the road stays where it stopped; one that drove off its end is gone.
     let shown = |v: &&Vehicle| v.status != Status::Exited;
     for vehicle in world.vehicles().iter().filter(shown) {

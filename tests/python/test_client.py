@@ -127,6 +127,7 @@ def test_actions_outside_the_space_or_for_finished_agents_raise_value_errors():
     # 7 is the server's to refuse, -1 the extension's (no u32 carries it): the same words.
     outside = "meta action {} is outside Discrete\\(5\\): use 0..=4"
     refused = [(7, outside.format(7)), (-1, outside.format(-1)), (1.5, "an int"), ("1", "an int"), (True, "an int")]
+    refused.append(([1, [2, 3]], "an int"))
     for bad, message in refused:
         with pytest.raises(highway_arena.InvalidActionError, match=f"agent 'ego_0': .*{message}"):
             env.step({"ego_0": bad})
@@ -153,6 +154,8 @@ def test_continuous_actions_accept_lists_and_arrays_and_refuse_out_of_range():
         env.step({"ec_0": [0.0, 0.0, 0.0]})
     with pytest.raises(highway_arena.InvalidActionError, match="expected numbers"):
         env.step({"ec_0": "fast"})
+    with pytest.raises(highway_arena.InvalidActionError, match="expected numbers"):
+        env.step({"ec_0": [1.0, [2.0, 3.0]]})
     with pytest.raises(highway_arena.InvalidActionError, match=r"agent 'ec_0': component 0 is 50, outside \[-1, 1\]"):
         env.step({"ec_0": np.array([50.0, 0.0])})
     with pytest.raises(highway_arena.InvalidActionError, match="component 0 is NaN; it must be a finite number"):

@@ -59,7 +59,9 @@ def action(value, action_space: spaces.Space | None, agent: str):
         if type(value) is int:
             return value
         if not _integral(value):
-            raise InvalidActionError("InvalidAction", f"agent {agent!r}: expected an int for {action_space}, got {value!r}")
+            raise InvalidActionError(
+                "InvalidAction", f"agent {agent!r}: expected an int for {action_space}, got {value!r}"
+            )
         return int(np.asarray(value).reshape(()))
     try:
         return np.asarray(value, dtype=np.float32).reshape(-1).tolist()
@@ -74,5 +76,8 @@ def _integral(value) -> bool:
     """An int, or a numpy integer or integer array of one element (a bool is no int)."""
     if type(value) is int:
         return True
-    array = np.asarray(value)
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError):  # a ragged sequence is no int either
+        return False
     return array.size == 1 and np.issubdtype(array.dtype, np.integer)

@@ -15,9 +15,10 @@ from .parallel import ParallelEnv, refuse_unknown
 @takes_env_options
 class GymEnv(gymnasium.Env):
     """One agent of a scenario as a ``gymnasium.Env``. Takes ParallelEnv's arguments
-    (the env options and the connection keywords among them, below), plus ``agent`` (default: the scenario's
-    first learner); any other keyword raises TypeError naming it and the valid ones. With
-    ``policy`` the server drives the learner and ``step`` ignores its action (pass None)."""
+    (the env options and the connection keywords among them, below), plus ``agent``
+    (default: the scenario's first learner); any other keyword raises TypeError naming it
+    and the valid ones. With ``policy`` the server drives the learner and ``step`` ignores
+    its action (pass None)."""
 
     # Read by gymnasium.make before an instance exists; instances add render_fps.
     metadata = {"render_modes": ["human", "rgb_array", "ansi"]}

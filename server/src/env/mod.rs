@@ -628,7 +628,7 @@ impl Env {
     fn end_shown(&self, id: VehicleId) -> Option<&'static str> {
         let world = self.world.as_ref()?;
         let out_of_time = self.state.agents.iter().any(|a| a.vehicle == id && !a.live);
-        world.ending(id).map(render::ending_name).or(out_of_time.then_some("TIME LIMIT"))
+        world.ending(id).map(render::ending_name).or(out_of_time.then_some(EndReason::TimeLimit.name()))
     }
 }
 

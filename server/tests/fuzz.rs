@@ -24,7 +24,7 @@ use arena_protocol::{
     PROTOCOL_VERSION, Reply, ReplyBody, Request, RequestBody, ResetOptions, ScenarioSource, TensorData, decode, encode,
 };
 use arena_server::transport::{Limits, Registry, Scenarios};
-use arena_sim::{GtDriver, RngState, Vehicle, WorldState};
+use arena_sim::{GtMemory, RngState, Vehicle, WorldState};
 use proptest::prelude::*;
 use proptest::sample::{Index, select};
 use serde::de::DeserializeOwned;
@@ -280,7 +280,7 @@ impl Layout {
         let count = span::<u64>(body, cycles.end);
         let vehicle = span::<u32>(body, count.end);
         let live = span::<bool>(body, vehicle.end);
-        let expert = span::<Option<GtDriver>>(body, live.end);
+        let expert = span::<Option<GtMemory>>(body, live.end);
         // The first place after the first agent's expert from which the rest decodes as a
         // world.
         let world = (expert.end..body.len())
@@ -560,7 +560,7 @@ fn field_mutated(base: &Base, mutation: &FieldMutation) -> Vec<u8> {
             let region = &body[range.clone()];
             let changed = match field {
                 Field::World => float_in::<WorldState>(region, at, *value),
-                _ => float_in::<Option<GtDriver>>(region, at, *value),
+                _ => float_in::<Option<GtMemory>>(region, at, *value),
             };
             changed.map_or_else(|| body.to_vec(), |changed| spliced(body, range, &changed))
         }

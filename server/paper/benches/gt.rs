@@ -20,21 +20,32 @@ use arena_paper::{PaperOptions, PaperScenario, world};
 use arena_sim::Driver;
 use arena_sim::Style;
 use arena_sim::analysis::{Mpc, plan_motion};
-use arena_sim::{Game, GtDriver, GtParams, expert_decision, plan};
-use arena_sim::{Scene, VehicleId, builtin_scenario};
+use arena_sim::{Game, GtMemory, GtParams, GtSetup, expert_decision, plan};
+use arena_sim::{Scene, VehicleId, World, builtin_scenario};
 use criterion::Criterion;
 
 /// arena-server's allocator (its `transport::memory`), so the figures are the server's.
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
+/// A gt car's driver: its setup and its memory.
+type Gt = (GtSetup, GtMemory);
+
+/// Vehicle `id`'s driver, if the AV drives it.
+fn gt_of(world: &World, id: VehicleId) -> Option<Gt> {
+    match (world.gt_setup(id), &world.vehicle(id).driver) {
+        (Some(setup), Driver::Gt(memory)) => Some((*setup, GtMemory::clone(memory))),
+        _ => None,
+    }
+}
+
 /// Scenario B's initial scene, EC's id and its driver.
-fn scenario_b(game: Game) -> (Scene, VehicleId, GtDriver) {
+fn scenario_b(game: Game) -> (Scene, VehicleId, Gt) {
     let mut world =
         world(PaperScenario::B, Style::Normal, game, &PaperOptions::default()).expect("overtake.toml loads");
     let ec = world.find("ec_0").expect("overtake.toml has ec_0");
-    let Driver::Gt(gt) = world.vehicle(ec).driver.clone() else { panic!("the paper's EC is a gt car") };
-    (world.scene().clone(), ec, *gt)
+    let gt = gt_of(&world, ec).expect("the paper's EC is a gt car");
+    (world.scene().clone(), ec, gt)
 }
 
 fn decision(scene: &Scene, ec: VehicleId, game: Game) -> f64 {
@@ -50,10 +61,10 @@ fn bench(c: &mut Criterion) {
     let mut mpc = Mpc::new();
     let lane = scene.car(ec).target_lane;
     group.bench_function("mpc_solve", |b| {
-        b.iter(|| plan_motion(black_box(&scene), ec, &gt, 0.5, lane, Some(&mut mpc)).map(|s| s.preview))
+        b.iter(|| plan_motion(black_box(&scene), ec, (&gt.0, &gt.1), 0.5, lane, Some(&mut mpc)).map(|s| s.preview))
     });
     let (scene, ec, gt) = scenario_b(Game::Stackelberg);
-    group.bench_function("av_step", |b| b.iter(|| plan(black_box(&scene), ec, &gt, Some(&mut mpc)).command));
+    group.bench_function("av_step", |b| b.iter(|| plan(black_box(&scene), ec, &gt.0, &gt.1, Some(&mut mpc)).command));
     group.finish();
 }
 
@@ -94,21 +105,21 @@ fn tails() {
     let mut mpc = Mpc::new();
     let lane = scene.car(ec).target_lane;
     percentiles("mpc_solve", n, || {
-        let _ = black_box(plan_motion(&scene, ec, &gt, 0.5, lane, Some(&mut mpc)));
+        let _ = black_box(plan_motion(&scene, ec, (&gt.0, &gt.1), 0.5, lane, Some(&mut mpc)));
     });
     let (scene, ec, gt) = scenario_b(Game::Stackelberg);
     percentiles("av_step (SE + MPC)", n, || {
-        black_box(plan(&scene, ec, &gt, Some(&mut mpc)));
+        black_box(plan(&scene, ec, &gt.0, &gt.1, Some(&mut mpc)));
     });
     let (scene, ec, gt) = scenario_b(Game::Nash);
     percentiles("av_step (NE + MPC)", n, || {
-        black_box(plan(&scene, ec, &gt, Some(&mut mpc)));
+        black_box(plan(&scene, ec, &gt.0, &gt.1, Some(&mut mpc)));
     });
 }
 
 /// highway-gt.toml's world of `seed` at every whole second from 5 to 24 s: its scene and
 /// each gt car's id and driver.
-fn highway_gt_scenes(seed: u64) -> Vec<(Scene, Vec<(VehicleId, GtDriver)>)> {
+fn highway_gt_scenes(seed: u64) -> Vec<(Scene, Vec<(VehicleId, Gt)>)> {
     let scenario = builtin_scenario("highway-gt").expect("highway-gt is built in").expect("it validates");
     let mut world = scenario.build(seed);
     let mut stepper = arena_sim::Stepper::new();
@@ -124,10 +135,7 @@ fn highway_gt_scenes(seed: u64) -> Vec<(Scene, Vec<(VehicleId, GtDriver)>)> {
         }
         let cars = (0..world.vehicles().len() as u32)
             .map(VehicleId)
-            .filter_map(|id| match &world.vehicle(id).driver {
-                Driver::Gt(gt) => Some((id, GtDriver::clone(gt))),
-                _ => None,
-            })
+            .filter_map(|id| gt_of(&world, id).map(|gt| (id, gt)))
             .collect();
         scenes.push((world.scene().clone(), cars));
     }
@@ -140,25 +148,25 @@ fn traffic() {
 the AV step in traffic (highway-gt.toml, seed 0, every gt car at 5..24 s):"
     );
     let scenes = highway_gt_scenes(0);
-    let cars: Vec<(&Scene, VehicleId, &GtDriver)> =
+    let cars: Vec<(&Scene, VehicleId, &Gt)> =
         scenes.iter().flat_map(|(scene, cars)| cars.iter().map(move |(id, gt)| (scene, *id, gt))).collect();
     let mut mpc = Mpc::new();
     let mut next = 0;
     percentiles("decision in traffic", 3000, || {
         let (scene, id, gt) = cars[next % cars.len()];
         next += 1;
-        black_box(expert_decision(scene, id, gt.game, &gt.params));
+        black_box(expert_decision(scene, id, gt.0.game, &gt.0.params));
     });
     percentiles("mpc in traffic", 3000, || {
         let (scene, id, gt) = cars[next % cars.len()];
         next += 1;
         let lane = scene.car(id).target_lane;
-        let _ = black_box(plan_motion(scene, id, gt, gt.decision.accel, lane, Some(&mut mpc)));
+        let _ = black_box(plan_motion(scene, id, (&gt.0, &gt.1), gt.1.decision.accel, lane, Some(&mut mpc)));
     });
     percentiles("av_step in traffic", 3000, || {
         let (scene, id, gt) = cars[next % cars.len()];
         next += 1;
-        black_box(plan(scene, id, gt, Some(&mut mpc)));
+        black_box(plan(scene, id, &gt.0, &gt.1, Some(&mut mpc)));
     });
 }
 

@@ -24,7 +24,7 @@ pub use dynamics::{
 };
 pub use gt::{
     AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, Explanation,
-    FieldParams, Game, GameExplained, GameParams, GtDriver, GtParams, GtStep, InteractionParams, JerkParams,
+    FieldParams, Game, GameExplained, GameParams, GtMemory, GtParams, GtSetup, GtStep, InteractionParams, JerkParams,
     Kinematics, MergeParams, MpcParams, PredictionParams, SafetyOverride, SafetyParams, SideExplained, StyleProfile,
     expert_decision, explain, plan, stage_cost,
 };

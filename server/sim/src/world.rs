@@ -15,7 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::{self, Command, DriverParams, LateralPath, Style, VehicleParams, VehicleState};
-use crate::gt::{self, GtDriver, GtParams, GtStep};
+use crate::gt::{self, Game, GtMemory, GtParams, GtSetup, GtStep};
 use crate::road::{LaneChange, LaneId, Road};
 use crate::scene::{Car, DriverKind, Role, Scene};
 
@@ -75,8 +75,9 @@ pub enum Driver {
     Agent(AgentCommand),
     /// IDM + MOBIL background traffic.
     Idm,
-    /// The paper's game-theoretic AV (`gt`): its game, role, constants and memory.
-    Gt(Box<GtDriver>),
+    /// The paper's game-theoretic AV (`gt`): its memory. Its game, role and constants
+    /// (`GtSetup`) the world keeps beside its state (`World::gt_setup`).
+    Gt(Box<GtMemory>),
 }
 
 /// What a learner last asked its vehicle to do.
@@ -153,13 +154,15 @@ impl Vehicle {
     pub fn on_road(&self) -> bool {
         matches!(self.status, Status::Driving | Status::Crashed)
     }
+}
 
-    fn driver_kind(&self) -> DriverKind {
-        match &self.driver {
-            Driver::Agent(_) => DriverKind::Agent,
-            Driver::Idm => DriverKind::Idm,
-            Driver::Gt(gt) => DriverKind::Gt(gt.role),
-        }
+/// Who drives a vehicle whose driver is `driver`, with the setup `gt` if the AV drives it,
+/// as the scene tells the other drivers.
+fn driver_kind(driver: &Driver, gt: Option<&GtSetup>) -> DriverKind {
+    match (driver, gt) {
+        (Driver::Agent(_), _) => DriverKind::Agent,
+        (Driver::Gt(_), Some(setup)) => DriverKind::Gt(setup.role),
+        (Driver::Idm | Driver::Gt(_), _) => DriverKind::Idm,
     }
 }
 
@@ -179,7 +182,8 @@ pub(crate) enum Decision {
 }
 
 /// The simulated world: the road and what a scenario fixes (bodies, timing, IDM's
-/// constants, each vehicle's prepared physics step), and its `WorldState`, everything that
+/// constants, each vehicle's prepared physics step and, for a `gt` car, its driver's
+/// game, role and constants), and its `WorldState`, everything that
 /// changes as it runs. A `Stepper` advances it; the world itself holds no scratch, no
 /// clock and no threads, so two worlds are the same world when their states are equal.
 /// Its fields are private so its invariants hold: every vehicle is in the sorted order,
@@ -197,6 +201,9 @@ pub struct World {
     /// Each vehicle's model constants over one physics step, by id, prepared when it is
     /// added (five divisions each): its body and driver parameters never change after.
     steps: Vec<dynamics::VehicleStep>,
+    /// Each `gt` car's game, role and constants, by id (`None` for every other vehicle):
+    /// fixed once it is added, as `steps` are.
+    gt_setups: Vec<Option<GtSetup>>,
     state: WorldState,
 }
 
@@ -212,14 +219,29 @@ impl World {
             params,
             idm: IdmParams::default(),
             steps: Vec::new(),
+            gt_setups: Vec::new(),
             state: WorldState::new(seed),
         }
     }
 
-    /// Adds a vehicle and returns its id.
+    /// Adds a vehicle a learner or IDM drives and returns its id; a `gt` car joins with
+    /// `add_gt`, which gives its driver a setup.
     pub fn add(&mut self, vehicle: Vehicle) -> VehicleId {
+        assert!(!matches!(vehicle.driver, Driver::Gt(_)), "a gt car joins a world with add_gt");
+        self.join(vehicle, None)
+    }
+
+    /// Adds a vehicle the game-theoretic AV drives with `setup`, its memory fresh, and
+    /// returns its id.
+    pub fn add_gt(&mut self, mut vehicle: Vehicle, setup: GtSetup) -> VehicleId {
+        vehicle.driver = Driver::Gt(Box::default());
+        self.join(vehicle, Some(setup))
+    }
+
+    fn join(&mut self, vehicle: Vehicle, gt: Option<GtSetup>) -> VehicleId {
         let (body, dt) = (&self.scene.vehicle, self.params.physics_dt);
         self.steps.push(dynamics::VehicleStep::new(body, &vehicle.driver_params, dt));
+        self.gt_setups.push(gt);
         let state = &mut self.state;
         state.order.push(state.vehicles.len() as u32);
         state.vehicles.push(vehicle);
@@ -323,13 +345,36 @@ impl World {
         self.scene_taken.filter(|&(tick, _)| tick == self.state.ticks).map(|(_, id)| id)
     }
 
+    /// Vehicle `id`'s game, role and constants if the game-theoretic AV drives it.
+    pub fn gt_setup(&self, id: VehicleId) -> Option<&GtSetup> {
+        match self.vehicle(id).driver {
+            Driver::Gt(_) => self.gt_setups[id.0 as usize].as_ref(),
+            _ => None,
+        }
+    }
+
     /// The parameters the game-theoretic AV plans with for vehicle `id`: its own if it is
     /// a `gt` car, the defaults otherwise.
     pub fn gt_params(&self, id: VehicleId) -> GtParams {
-        match &self.vehicle(id).driver {
-            Driver::Gt(gt) => gt.params,
-            _ => GtParams::default(),
-        }
+        self.gt_setup(id).map_or_else(GtParams::default, |setup| setup.params)
+    }
+
+    /// Gives `gt` car `id`'s driver the constants `params` from now on (a fit, a
+    /// comparison with a part switched off); the decisions made ahead are then out of date.
+    pub fn set_gt_params(&mut self, id: VehicleId, params: GtParams) {
+        let setup = self.gt_setups[id.0 as usize].as_mut().expect("set_gt_params of a gt car");
+        setup.params = params;
+        self.scene_taken = None;
+    }
+
+    /// The setup of vehicle `index`, which the game-theoretic AV drives.
+    fn setup(&self, index: usize) -> &GtSetup {
+        self.gt_setups[index].as_ref().expect("a gt car has its setup")
+    }
+
+    /// Who drives vehicle `index`, as the scene tells the other drivers.
+    fn driver_kind(&self, index: usize) -> DriverKind {
+        driver_kind(&self.state.vehicles[index].driver, self.gt_setups[index].as_ref())
     }
 
     /// Vehicle `id`'s stage cost now (eq. 10-14), with the game-theoretic AV's constants
@@ -347,17 +392,19 @@ impl World {
     }
 
     /// The AV's command in `id`'s place now (its acceleration and the preview point its
-    /// MPC plans), with the memory `expert` holds of its earlier periods there, which it
-    /// then updates (its `decision` among them).
+    /// MPC plans), playing `game` as a leader with its constants for `id` (`gt_params`),
+    /// with the memory `expert` holds of its earlier periods there, which it then updates
+    /// (its `decision` among them).
     /// In a place the AV does not drive, the lane change it makes is its own
-    /// (`GtDriver::counterfactual_target`), not the vehicle's.
-    pub fn expert_command(&mut self, id: VehicleId, expert: &mut GtDriver) -> Command {
+    /// (`GtMemory::counterfactual_target`), not the vehicle's.
+    pub fn expert_command(&mut self, id: VehicleId, game: Game, expert: &mut GtMemory) -> Command {
+        let setup = GtSetup { game, role: Role::Leader, params: self.gt_params(id) };
         self.scene();
         let car = *self.scene.car(id);
         let beside = |lane: &LaneId| lane.0.abs_diff(car.lane.0) <= 1;
         let target = expert.counterfactual_target.filter(beside).unwrap_or(car.target_lane);
-        let step = self.scene.with_target_lane(id, target, |scene| gt::plan(scene, id, expert, None));
-        *expert = step.driver;
+        let step = self.scene.with_target_lane(id, target, |scene| gt::plan(scene, id, &setup, expert, None));
+        *expert = step.memory;
         if !matches!(self.vehicle(id).driver, Driver::Gt(_)) {
             expert.counterfactual_target = Some(step.change_to.unwrap_or(target));
         }
@@ -408,6 +455,7 @@ impl World {
     }
 
     fn take_scene(&mut self) {
+        let setups = &self.gt_setups;
         let cars = self.state.vehicles.iter().enumerate().map(|(i, vehicle)| Car {
             id: VehicleId(i as u32),
             state: vehicle.state,
@@ -419,7 +467,7 @@ impl World {
             accel: vehicle.command.accel,
             preview: vehicle.command.preview,
             status: vehicle.status,
-            driver: vehicle.driver_kind(),
+            driver: driver_kind(&vehicle.driver, setups[i].as_ref()),
             decided: None,
         });
         self.scene.refresh(self.state.time, cars);
@@ -428,7 +476,7 @@ impl World {
 
     fn is_follower(&self, index: usize) -> bool {
         let vehicle = &self.state.vehicles[index];
-        vehicle.status == Status::Driving && matches!(&vehicle.driver, Driver::Gt(gt) if gt.role == Role::Follower)
+        vehicle.status == Status::Driving && self.driver_kind(index) == DriverKind::Gt(Role::Follower)
     }
 
     fn is_gt(&self, index: usize) -> bool {
@@ -455,7 +503,9 @@ impl World {
                     && vehicle.path.finished(time);
                 Decision::Idm(traffic::decide(&self.idm, scene, id, may_change_lanes))
             }
-            (Status::Driving, Driver::Gt(gt)) => Decision::Gt(Box::new(gt::plan(scene, id, gt, None))),
+            (Status::Driving, Driver::Gt(memory)) => {
+                Decision::Gt(Box::new(gt::plan(scene, id, self.setup(index), memory, None)))
+            }
         }
     }
 
@@ -477,7 +527,7 @@ impl World {
         match (car.driver, decision) {
             (DriverKind::Agent, Decision::Accel(accel)) => Some((*accel, under_way)),
             (DriverKind::Gt(Role::Leader), Decision::Gt(step)) => {
-                let decided = step.driver.decision;
+                let decided = step.memory.decision;
                 let change = if under_way != LaneChange::Keep { under_way } else { decided.lane_change };
                 Some((decided.accel, change))
             }
@@ -500,14 +550,14 @@ impl World {
                 idm.accel
             }
             Decision::Gt(step) => {
-                let GtStep { command, change_to, ramp, driver } = *step;
+                let GtStep { command, change_to, ramp, memory } = *step;
                 if let Some(lane) = change_to {
                     self.change_lane(id, lane);
                 }
                 ramp_from = ramp.then_some(previous);
                 let vehicle = self.vehicle_mut(id);
                 vehicle.command.preview = command.preview;
-                vehicle.driver = Driver::Gt(Box::new(driver));
+                vehicle.driver = Driver::Gt(Box::new(memory));
                 command.accel
             }
         };

@@ -5,7 +5,7 @@
 //! reset, a world whose explanations would not fit a reply.
 
 use arena_protocol::{DecisionExplained, ErrorCode, ErrorReply, GameTable, GtRole, PathPoint};
-use arena_sim::{Driver, Explanation, Game, Kinematics, Road, Role, SideExplained, Stepper, World};
+use arena_sim::{Explanation, Game, Kinematics, Road, Role, SideExplained, Stepper, VehicleId, World};
 
 use super::error;
 
@@ -27,11 +27,11 @@ pub(super) fn bytes_per_decision(accels: usize, samples: usize) -> usize {
 /// could not fit a reply.
 pub fn check_fits(world: &World, periods: usize) -> Result<(), ErrorReply> {
     let mut bytes = 0usize;
-    for vehicle in world.vehicles() {
-        if let Driver::Gt(gt) = &vehicle.driver {
-            let g = &gt.params.decision.game;
+    for id in (0..world.vehicles().len()).map(|i| VehicleId(i as u32)) {
+        if let Some(setup) = world.gt_setup(id) {
+            let g = &setup.params.decision.game;
             let accels = ((g.accel_max - g.accel_min) / g.accel_step).round().max(0.0) as usize + 1;
-            let samples = gt.params.decision.prediction.samples;
+            let samples = setup.params.decision.prediction.samples;
             bytes = bytes.saturating_add(bytes_per_decision(accels, samples).saturating_mul(periods));
         }
     }

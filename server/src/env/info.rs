@@ -8,7 +8,7 @@ use arena_protocol::info::{self as key, DIAGNOSTIC_COUNTS};
 use arena_protocol::{ActionType, EndReason, Info, InfoValue, MetaAction};
 
 use arena_sim::Decision;
-use arena_sim::{Driver, Status, VehicleId, World};
+use arena_sim::{Driver, Game, GtMemory, Status, VehicleId, World};
 
 use super::action;
 use super::episode::Figures;
@@ -108,12 +108,12 @@ pub fn expert(
     world: &mut World,
     id: VehicleId,
     kind: ActionType,
-    memory: &mut arena_sim::GtDriver,
+    (game, memory): (Game, &mut GtMemory),
     ladder: &mut f64,
 ) -> (Decision, InfoValue) {
     if let Driver::Gt(driving) = &world.vehicle(id).driver {
         *memory = (**driving).clone();
-        let command = world.expert_command(id, memory);
+        let command = world.expert_command(id, game, memory);
         return match kind {
             ActionType::Meta => {
                 let meta = meta_label(world, id, &memory.decision, *ladder);
@@ -126,12 +126,12 @@ pub fn expert(
     }
     match kind {
         ActionType::Meta => {
-            let decision = world.expert_decision(id, memory.game);
+            let decision = world.expert_decision(id, game);
             let meta = meta_label(world, id, &decision, world.vehicle(id).target_speed);
             (decision, InfoValue::I64(i64::from(meta.code())))
         }
         ActionType::Continuous => {
-            let command = world.expert_command(id, memory);
+            let command = world.expert_command(id, game, memory);
             (memory.decision, continuous_label(world, id, command))
         }
     }

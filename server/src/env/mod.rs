@@ -39,7 +39,7 @@ use serde::{Deserialize, Serialize};
 use arena_sim::Role;
 use arena_sim::Style;
 use arena_sim::{ActionKind, DriverSpec, Scenario};
-use arena_sim::{Game, GtDriver};
+use arena_sim::{Game, GtMemory};
 use arena_sim::{Status, Stepper, VehicleId, World};
 
 /// Where a server runs `Env::decide_ahead` once a reply is on its way: the decision pool's
@@ -62,8 +62,9 @@ struct AgentState {
     vehicle: VehicleId,
     live: bool,
     /// The memory of the built-in AV planning in this agent's place (its last preview
-    /// point and MPC plan), for continuous expert actions.
-    expert: Option<Box<GtDriver>>,
+    /// point and MPC plan), for continuous expert actions. Its game is the env's
+    /// `expert`, its constants the vehicle's (`World::gt_params`): not state.
+    expert: Option<Box<GtMemory>>,
     /// The figures of its episode so far.
     stats: Option<episode::EpisodeStats>,
     /// The speed its scenario has it aim for (m/s), fixed for the episode: the reward's
@@ -346,8 +347,7 @@ impl Env {
         for (slot, agent) in self.agents.iter().zip(&mut state.agents) {
             agent.live = true;
             agent.vehicle = world.find(&slot.name).unwrap_or(agent.vehicle);
-            agent.expert =
-                self.expert.map(|game| Box::new(GtDriver::new(game, Role::Leader, world.gt_params(agent.vehicle))));
+            agent.expert = self.expert.map(|_| Box::default());
             agent.stats = Some(episode::EpisodeStats::start(&world, agent.vehicle, periods));
             agent.aim = world.vehicle(agent.vehicle).target_speed;
             agent.ladder = agent.aim;
@@ -587,9 +587,9 @@ impl Env {
     fn info(&mut self, world: &mut World, i: usize, outcome: &info::Outcome) -> arena_protocol::Info {
         let (action, agent) = (self.agents[i].action, &mut self.state.agents[i]);
         let mut info = info::info(world, agent.vehicle, outcome);
-        if let Some(memory) = agent.expert.as_mut() {
+        if let (Some(game), Some(memory)) = (self.expert, agent.expert.as_mut()) {
             let running = outcome.end == EndReason::Running;
-            let expert = running.then(|| info::expert(world, agent.vehicle, action, memory, &mut agent.ladder));
+            let expert = running.then(|| info::expert(world, agent.vehicle, action, (game, memory), &mut agent.ladder));
             info::add_expert(&mut info, action, expert);
         }
         if self.diagnostics {

@@ -11,7 +11,7 @@ use arena_protocol::{
     VehicleInfo, WorldFrame, WorldStart,
 };
 
-use arena_sim::{AtFault, Driver, LaneId, Road, Role, Section, World};
+use arena_sim::{AtFault, Driver, LaneId, Road, Role, Section, VehicleId, World};
 
 use super::{episode, error, style_of};
 
@@ -100,13 +100,14 @@ pub fn start(world: &World, learners: &[&str]) -> WorldStart {
     let vehicles = world
         .vehicles()
         .iter()
-        .map(|vehicle| VehicleInfo {
+        .enumerate()
+        .map(|(i, vehicle)| VehicleInfo {
             name: vehicle.name.clone(),
             learner: learners.contains(&vehicle.name.as_str()),
-            driver: match &vehicle.driver {
-                Driver::Agent(_) => DriverInfo::Learner,
-                Driver::Idm => DriverInfo::Idm,
-                Driver::Gt(gt) => DriverInfo::Gt {
+            driver: match (world.gt_setup(VehicleId(i as u32)), &vehicle.driver) {
+                (None, Driver::Agent(_)) => DriverInfo::Learner,
+                (None, _) => DriverInfo::Idm,
+                (Some(gt), _) => DriverInfo::Gt {
                     game: match gt.game {
                         arena_sim::Game::Nash => arena_protocol::Game::Nash,
                         arena_sim::Game::Stackelberg => arena_protocol::Game::Stackelberg,

@@ -2,7 +2,8 @@
 //! lane ends, through the scene's neighbour queries), plays the game of its role, plans
 //! Y_p with the MPC, commands the first step of the decision's ramp at the jerk bound
 //! (`jerk`), and falls back to a safe command when the MPC fails. It returns a `GtStep`;
-//! the world applies it. Its memory (`GtDriver`) is plain data kept in the
+//! the world applies it. What the scenario fixes of it (`GtSetup`: game, role, constants)
+//! the world keeps beside its state; its memory (`GtMemory`) is plain data kept in the
 //! vehicle; the only scratch (the MPC's solver) does not affect results. Also the two
 //! questions the env asks of any vehicle: `stage_cost` and `expert_decision`, each with
 //! that vehicle's own parameters.
@@ -14,7 +15,7 @@ use super::field::{self, Field, FieldParams, Obstacle};
 use super::games::{
     Adjacent, Decision, DecisionParams, Game, GameExplained, LaneOption, Needs, Player, Profile, SideGame, Situation,
 };
-use super::jerk::{AccelRamp, Exemption};
+use super::jerk::{AccelRamp, Exemption, JerkParams};
 use super::merge::UnderWay;
 use super::mpc::{self, Mpc, MpcError, MpcParams, MpcProblem, MpcSolution};
 use super::prediction::{self, Kinematics, SpeedBounds};
@@ -199,15 +200,23 @@ pub struct Diagnostics {
     pub emergency_jumps: u32,
 }
 
-/// A `gt` driver's settings and memory: plain data, part of the world's state.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct GtDriver {
+/// What a scenario fixes of a `gt` driver: the game it plays, its role in it and its
+/// constants. The world keeps it beside its state (`World::gt_setup`); it never changes
+/// as the world runs, and no state from outside carries it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GtSetup {
     /// Nash or Stackelberg.
     pub game: Game,
     /// Leader or follower.
     pub role: Role,
     /// Its constants.
     pub params: GtParams,
+}
+
+/// A `gt` driver's memory: plain data, part of the world's state. A fresh driver's is the
+/// default.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct GtMemory {
     /// The last decision.
     pub decision: Decision,
     /// u(k-1): the preview point of the last plan, once there is one (m).
@@ -231,48 +240,26 @@ pub struct GtDriver {
     pub diagnostics: Diagnostics,
 }
 
-impl GtDriver {
-    /// A fresh driver.
-    pub fn new(game: Game, role: Role, params: GtParams) -> GtDriver {
-        GtDriver {
-            game,
-            role,
-            params,
-            decision: Decision::default(),
-            preview: None,
-            plan: Vec::new(),
-            pace: None,
-            crossing_at: None,
-            counterfactual_target: None,
-            diagnostics: Diagnostics::default(),
-        }
-    }
-
+impl GtMemory {
     /// Every number it carries from one decision to the next.
-    pub fn memory_numbers(&self) -> impl Iterator<Item = f64> + '_ {
+    pub fn numbers(&self) -> impl Iterator<Item = f64> + '_ {
         let d = &self.decision;
         let memory = [self.preview, self.pace, self.crossing_at, d.response, d.duration, d.crossing];
         let decided = [d.accel, d.cost, d.predicted.safety, d.predicted.comfort, d.predicted.efficiency];
         memory.into_iter().flatten().chain(decided).chain(self.plan.iter().copied())
     }
 
-    /// Whether this memory, read from outside (a snapshot), could be one `like` (the
-    /// driver its scenario gives the car) came to: the same game, role and constants, every
-    /// number finite, a plan no longer than the MPC's, lanes the road (`lanes` wide) has.
-    /// The constants are never taken from outside: they set how much a decision costs.
-    pub fn check_memory(&self, like: &GtDriver, lanes: usize) -> Result<(), String> {
-        if (self.game, self.role) != (like.game, like.role) || self.params != like.params {
-            return Err("another driver, or the same with other constants".into());
-        }
-        if !self.memory_numbers().all(crate::dynamics::within_state) {
+    /// Whether this memory, read from outside (a snapshot), could be one a driver with
+    /// `setup` (the one its scenario gives the car) came to: every number finite, a plan
+    /// no longer than its MPC's, lanes the road (`lanes` wide) has. The setup itself is
+    /// never taken from outside: it sets how much a decision costs.
+    pub fn check(&self, setup: &GtSetup, lanes: usize) -> Result<(), String> {
+        if !self.numbers().all(crate::dynamics::within_state) {
             return Err("a number that is not finite, or past MAX_STATE_MAGNITUDE, in its driver's memory".into());
         }
-        if self.plan.len() > self.params.mpc.control_horizon.max(1) {
-            return Err(format!(
-                "a plan of {} moves, where its MPC plans {}",
-                self.plan.len(),
-                self.params.mpc.control_horizon
-            ));
+        let horizon = setup.params.mpc.control_horizon;
+        if self.plan.len() > horizon.max(1) {
+            return Err(format!("a plan of {} moves, where its MPC plans {horizon}", self.plan.len()));
         }
         if self.counterfactual_target.is_some_and(|lane| lane.0 as usize >= lanes) {
             return Err(format!("a lane the road (lanes 0..{lanes}) does not have"));
@@ -293,7 +280,7 @@ pub struct GtStep {
     /// the bound off).
     pub ramp: bool,
     /// The driver's new memory.
-    pub driver: GtDriver,
+    pub memory: GtMemory,
 }
 
 fn kinematics(car: &Car) -> Kinematics {
@@ -537,17 +524,18 @@ fn field_around(scene: &Scene, id: VehicleId, params: &FieldParams, one_sided: b
     Field::new(*params, scene.vehicle.width, obstacles, field::road_lines(&scene.road, params, one_sided))
 }
 
-/// Plans Y_p toward `target` lane for car `id`, driven by `gt`, at acceleration `accel`
-/// (held from now) with `mpc`.
+/// Plans Y_p toward `target` lane for car `id`, driven by `setup` with `memory`, at
+/// acceleration `accel` (held from now) with `mpc`.
 pub fn plan_motion(
     scene: &Scene,
     id: VehicleId,
-    gt: &GtDriver,
+    (setup, memory): (&GtSetup, &GtMemory),
     accel: f64,
     target: LaneId,
     mpc: Option<&mut Mpc>,
 ) -> Result<MpcSolution, MpcError> {
-    plan_motion_with(scene, id, gt, &gt.params.mpc, AccelRamp::step(accel), target, mpc)
+    let ramp = AccelRamp::step(accel);
+    plan_motion_with(scene, id, (&setup.params, memory), &setup.params.mpc, ramp, target, mpc)
 }
 
 /// `plan_motion` with the MPC's constants `mpc_params` (a shortened lane change moves its
@@ -555,13 +543,12 @@ pub fn plan_motion(
 fn plan_motion_with(
     scene: &Scene,
     id: VehicleId,
-    gt: &GtDriver,
+    (params, memory): (&GtParams, &GtMemory),
     mpc_params: &MpcParams,
     accel: AccelRamp,
     target: LaneId,
     mpc: Option<&mut Mpc>,
 ) -> Result<MpcSolution, MpcError> {
-    let params = &gt.params;
     let car = scene.car(id);
     let field = field_around(scene, id, &params.field, params.decision.merge.enabled);
     let road = &scene.road;
@@ -571,14 +558,14 @@ fn plan_motion_with(
     let problem = MpcProblem {
         state: car.state,
         accel,
-        previous_preview: gt.preview.unwrap_or(car.preview),
+        previous_preview: memory.preview.unwrap_or(car.preview),
         target: road.lane_center(target),
         curvature: road.curvature(car.state.s),
         vehicle: &scene.vehicle,
         driver: &car.driver_params,
         dt: scene.control_dt,
         field: &field,
-        nominal: &gt.plan,
+        nominal: &memory.plan,
         preview_bounds: (rightmost - margin.min(w), margin.min(w)),
     };
     match mpc {
@@ -587,20 +574,25 @@ fn plan_motion_with(
     }
 }
 
-/// What car `id`, driven by `gt`, decides this period in its role.
-pub fn decide(scene: &Scene, id: VehicleId, gt: &GtDriver) -> Decision {
-    match gt.role {
-        Role::Leader => leader_situation(scene, id, gt).0.decide(gt.game, &gt.params.decision),
-        Role::Follower => follow(scene, id, gt.game, &gt.params),
+/// What car `id`, driven by `setup` with `memory`, decides this period in its role.
+pub fn decide(scene: &Scene, id: VehicleId, setup: &GtSetup, memory: &GtMemory) -> Decision {
+    match setup.role {
+        Role::Leader => leader_situation(scene, id, setup, memory).0.decide(setup.game, &setup.params.decision),
+        Role::Follower => follow(scene, id, setup.game, &setup.params),
     }
 }
 
 /// A leader's situation, its lane change under way timed from the driver's memory, with
 /// the adjacent car of each side.
-fn leader_situation(scene: &Scene, id: VehicleId, gt: &GtDriver) -> (Situation, [Option<VehicleId>; 2]) {
-    let pace = gt.pace.unwrap_or(LANE_CHANGE_DURATION);
-    let under_way = UnderWay { pace, crossing_in: gt.crossing_at.map(|t| t - scene.time) };
-    situation_timed(scene, id, &gt.params, Some(under_way))
+fn leader_situation(
+    scene: &Scene,
+    id: VehicleId,
+    setup: &GtSetup,
+    memory: &GtMemory,
+) -> (Situation, [Option<VehicleId>; 2]) {
+    let pace = memory.pace.unwrap_or(LANE_CHANGE_DURATION);
+    let under_way = UnderWay { pace, crossing_in: memory.crossing_at.map(|t| t - scene.time) };
+    situation_timed(scene, id, &setup.params, Some(under_way))
 }
 
 /// A game-theoretic car's decision of one control period explained (issue 27): the game
@@ -629,17 +621,17 @@ pub struct Explanation {
     pub fallback: bool,
 }
 
-/// Explains the decision `step` that car `id`, driven by `gt` (its memory before the
-/// decision), took from `scene`: the decision's game recomputed from the same situation,
-/// so `step` is unchanged whether or not anyone asks.
-pub fn explain(scene: &Scene, id: VehicleId, gt: &GtDriver, step: &GtStep) -> Explanation {
-    let d = &gt.params.decision;
-    let (ec, adjacent, played) = match gt.role {
+/// Explains the decision `step` that car `id`, driven by `setup` with `memory` (its memory
+/// before the decision), took from `scene`: the decision's game recomputed from the same
+/// situation, so `step` is unchanged whether or not anyone asks.
+pub fn explain(scene: &Scene, id: VehicleId, setup: &GtSetup, memory: &GtMemory, step: &GtStep) -> Explanation {
+    let d = &setup.params.decision;
+    let (ec, adjacent, played) = match setup.role {
         Role::Leader => {
-            let (situation, adjacent) = leader_situation(scene, id, gt);
-            (id, adjacent, situation.explain(gt.game, d))
+            let (situation, adjacent) = leader_situation(scene, id, setup, memory);
+            (id, adjacent, situation.explain(setup.game, d))
         }
-        Role::Follower => match follow_game(scene, id, gt.game, &gt.params) {
+        Role::Follower => match follow_game(scene, id, setup.game, &setup.params) {
             Followed::Alone(own) => (id, [None, None], own.explain(Game::Nash, d)),
             Followed::Answer { partner, side, view, game, profile } => {
                 let mut adjacent = [None, None];
@@ -648,16 +640,16 @@ pub fn explain(scene: &Scene, id: VehicleId, gt: &GtDriver, step: &GtStep) -> Ex
             }
         },
     };
-    let diagnostics = &step.driver.diagnostics;
+    let diagnostics = &step.memory.diagnostics;
     Explanation {
         vehicle: id,
         time: scene.time,
-        game: gt.game,
-        role: gt.role,
+        game: setup.game,
+        role: setup.role,
         ec,
         adjacent,
         played,
-        decision: step.driver.decision,
+        decision: step.memory.decision,
         safety: diagnostics.safety,
         fallback: diagnostics.fallback.is_some(),
     }
@@ -666,18 +658,17 @@ pub fn explain(scene: &Scene, id: VehicleId, gt: &GtDriver, step: &GtStep) -> Ex
 /// The acceleration to command this period for a car whose last command was `previous`,
 /// towards `target` (docs/design.md, "Jerk"), and whether the world ramps to it: the
 /// first step of the ramp at the jerk bound, or, for an exempt command, `target` at once,
-/// counted in `diagnostics` when that leaves the bound.
+/// counted in `diagnostics` when that leaves the bound `jerk`.
 pub(super) fn command_accel(
     previous: f64,
     target: f64,
     dt: f64,
     exemption: Option<Exemption>,
-    driver: &mut GtDriver,
+    (jerk, diagnostics): (&JerkParams, &mut Diagnostics),
 ) -> (f64, bool) {
-    let jerk = driver.params.decision.jerk;
     let Some(exemption) = exemption else { return (jerk.ramp(previous, target).at(dt), jerk.enabled) };
     if (target - previous).abs() > jerk.step_limit(dt) {
-        let d = &mut driver.diagnostics;
+        let d = diagnostics;
         match exemption {
             Exemption::Abort => d.abort_jumps += 1,
             Exemption::Emergency => d.emergency_jumps += 1,
@@ -687,32 +678,34 @@ pub(super) fn command_accel(
 }
 
 /// One control period of the `gt` driver of car `id`: decide, keep safe, plan, or fall
-/// back. Reads the scene only; the world applies the returned step.
-pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) -> GtStep {
+/// back, as `setup` says, from `memory` (the driver's before this period). Reads the
+/// scene only; the world applies the returned step.
+pub fn plan(scene: &Scene, id: VehicleId, setup: &GtSetup, memory: &GtMemory, mpc: Option<&mut Mpc>) -> GtStep {
     let car = scene.car(id);
-    let mut decision = decide(scene, id, gt);
-    let leads = gt.role == Role::Leader;
+    let params = &setup.params;
+    let mut decision = decide(scene, id, setup, memory);
+    let leads = setup.role == Role::Leader;
     let starts = decision.lane_change != LaneChange::Keep && car.target_lane == car.lane && leads;
     let aborts = decision.aborted && car.target_lane != car.lane && leads;
     let target = if starts { scene.lane_beside(car.lane, decision.lane_change) } else { None };
     let target = if aborts { car.lane } else { target.unwrap_or(car.target_lane) };
-    let mut driver = GtDriver::clone(gt);
+    let mut next = GtMemory::clone(memory);
     // The safety layer, outside the games: it only lowers the acceleration they decided.
     let intent = safety::Intent {
         target,
-        pace: decision.duration.or(gt.pace).unwrap_or(LANE_CHANGE_DURATION),
-        lag: gt.params.decision.merge.response_lag,
+        pace: decision.duration.or(memory.pace).unwrap_or(LANE_CHANGE_DURATION),
+        lag: params.decision.merge.response_lag,
         accel: decision.accel,
-        firm: -gt.params.decision.game.accel_min,
+        firm: -params.decision.game.accel_min,
     };
-    let limited = safety::limit(scene, id, &intent, &gt.params.safety);
+    let limited = safety::limit(scene, id, &intent, &params.safety);
     if let Some(limited) = limited {
         decision.accel = limited.accel;
-        driver.diagnostics.overrides += 1;
-        driver.diagnostics.emergencies += u32::from(limited.emergency);
+        next.diagnostics.overrides += 1;
+        next.diagnostics.emergencies += u32::from(limited.emergency);
     }
-    driver.diagnostics.safety = limited;
-    driver.decision = decision;
+    next.diagnostics.safety = limited;
+    next.decision = decision;
     // The command ramps to the decision at the jerk bound unless exempt: an aborted lane
     // change and a safety override brake at once (the safe distance assumes a response
     // within `safety.response_time`).
@@ -724,59 +717,60 @@ pub fn plan(scene: &Scene, id: VehicleId, gt: &GtDriver, mpc: Option<&mut Mpc>) 
     // What the driver remembers of a change under way (`merge`): its pace and when it
     // crosses the line.
     let under_way = (starts || car.target_lane != car.lane) && !aborts;
-    driver.pace = decision.duration.filter(|_| under_way);
-    driver.crossing_at = decision.crossing.filter(|_| under_way).map(|t| scene.time + t);
-    driver.diagnostics.inexact += u32::from(!decision.exact);
+    next.pace = decision.duration.filter(|_| under_way);
+    next.crossing_at = decision.crossing.filter(|_| under_way).map(|t| scene.time + t);
+    next.diagnostics.inexact += u32::from(!decision.exact);
     // A shortened change (`merge`) moves the preview point as much faster: Delta u_max of
     // eq. (27) is sized for `LANE_CHANGE_DURATION`.
-    let mut mpc_params = gt.params.mpc;
+    let mut mpc_params = params.mpc;
     if let Some(duration) = decision.duration.filter(|&t| t < LANE_CHANGE_DURATION) {
         mpc_params.max_step *= LANE_CHANGE_DURATION / duration;
     }
     let ramp = match exemption {
         Some(_) => AccelRamp::step(decision.accel),
-        None => gt.params.decision.jerk.ramp(car.accel, decision.accel),
+        None => params.decision.jerk.ramp(car.accel, decision.accel),
     };
-    match plan_motion_with(scene, id, gt, &mpc_params, ramp, target, mpc) {
+    match plan_motion_with(scene, id, (params, memory), &mpc_params, ramp, target, mpc) {
         Ok(solution) => {
-            driver.preview = Some(solution.preview);
-            driver.plan = solution.plan;
-            driver.diagnostics.fallback = None;
-            driver.diagnostics.iterations = solution.iterations;
-            driver.diagnostics.iterations_total += u64::from(solution.iterations);
-            driver.diagnostics.plans += 1;
-            let (accel, ramp) = command_accel(car.accel, decision.accel, scene.control_dt, exemption, &mut driver);
+            next.preview = Some(solution.preview);
+            next.plan = solution.plan;
+            next.diagnostics.fallback = None;
+            next.diagnostics.iterations = solution.iterations;
+            next.diagnostics.iterations_total += u64::from(solution.iterations);
+            next.diagnostics.plans += 1;
+            let jerk = (&params.decision.jerk, &mut next.diagnostics);
+            let (accel, ramp) = command_accel(car.accel, decision.accel, scene.control_dt, exemption, jerk);
             let command = Command { accel, preview: solution.preview };
-            GtStep { command, change_to: (target != car.target_lane).then_some(target), ramp, driver }
+            GtStep { command, change_to: (target != car.target_lane).then_some(target), ramp, memory: next }
         }
-        Err(error) => fallback(scene, id, driver, &error),
+        Err(error) => fallback(scene, id, params, next, &error),
     }
 }
 
 /// The safe command: keep (or return to) the current lane, brake within bounds, the
 /// braking reached at the jerk bound (at once under a safety override).
-fn fallback(scene: &Scene, id: VehicleId, mut driver: GtDriver, error: &MpcError) -> GtStep {
+fn fallback(scene: &Scene, id: VehicleId, params: &GtParams, mut next: GtMemory, error: &MpcError) -> GtStep {
     let car = scene.car(id);
-    let params = &driver.params;
     let bounds = SpeedBounds { min: params.decision.game.speed_min, max: speed_limit(scene, car, car.lane) };
     let brake = (-params.interaction.fallback_brake).max(params.decision.game.accel_min);
     let mut accel = prediction::feasible_accel(brake, car.state.vx, bounds, scene.control_dt);
     // The safety layer's braking, if harder (`plan` has lowered the decision's).
-    if driver.diagnostics.safety.is_some() {
-        accel = accel.min(driver.decision.accel);
+    if next.diagnostics.safety.is_some() {
+        accel = accel.min(next.decision.accel);
     }
     let preview = scene.road.lane_center(car.lane);
-    driver.decision = Decision { accel, lane_change: LaneChange::Keep, exact: false, ..driver.decision };
-    driver.preview = Some(preview);
-    driver.plan.clear();
-    driver.pace = None;
-    driver.crossing_at = None;
-    driver.diagnostics.fallback = Some(error.to_string());
-    driver.diagnostics.fallbacks += 1;
-    driver.diagnostics.iterations = 0;
-    driver.diagnostics.plans += 1;
+    next.decision = Decision { accel, lane_change: LaneChange::Keep, exact: false, ..next.decision };
+    next.preview = Some(preview);
+    next.plan.clear();
+    next.pace = None;
+    next.crossing_at = None;
+    next.diagnostics.fallback = Some(error.to_string());
+    next.diagnostics.fallbacks += 1;
+    next.diagnostics.iterations = 0;
+    next.diagnostics.plans += 1;
     let change_to = (car.target_lane != car.lane).then_some(car.lane);
-    let exemption = driver.diagnostics.safety.map(|_| Exemption::Emergency);
-    let (accel, ramp) = command_accel(car.accel, accel, scene.control_dt, exemption, &mut driver);
-    GtStep { command: Command { accel, preview }, change_to, ramp, driver }
+    let exemption = next.diagnostics.safety.map(|_| Exemption::Emergency);
+    let jerk = (&params.decision.jerk, &mut next.diagnostics);
+    let (accel, ramp) = command_accel(car.accel, accel, scene.control_dt, exemption, jerk);
+    GtStep { command: Command { accel, preview }, change_to, ramp, memory: next }
 }

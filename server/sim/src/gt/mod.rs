@@ -43,7 +43,7 @@ mod styles;
 // questions the env asks. The games, the field and the MPC stay inside.
 pub use costs::{CostComponents, CostParams};
 pub use driver::{
-    Diagnostics, Explanation, GtDriver, GtParams, GtStep, InteractionParams, expert_decision, explain, plan,
+    Diagnostics, Explanation, GtMemory, GtParams, GtSetup, GtStep, InteractionParams, expert_decision, explain, plan,
     plan_motion, stage_cost,
 };
 pub use field::FieldParams;

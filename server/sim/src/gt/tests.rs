@@ -14,8 +14,9 @@ fn expert(world: &mut World, id: VehicleId, game: Game) -> Decision {
 
 /// The `gt` driver of vehicle `id`, planning once from the world as it is.
 fn plan_of(world: &mut World, id: VehicleId) -> GtStep {
-    let Driver::Gt(gt) = world.vehicle(id).driver.clone() else { panic!("not a gt car") };
-    plan(world.scene(), id, &gt, None)
+    let Driver::Gt(memory) = world.vehicle(id).driver.clone() else { panic!("not a gt car") };
+    let setup = *world.gt_setup(id).expect("a gt car has its setup");
+    plan(world.scene(), id, &setup, &memory, None)
 }
 
 fn cost_now(world: &mut World, id: VehicleId) -> CostComponents {
@@ -117,16 +118,32 @@ fn straight_road(lanes: usize, lane_ends: &[(LaneId, f64)]) -> Road {
     )
 }
 
-fn gt(game: Game, role: Role) -> Driver {
-    Driver::Gt(Box::new(GtDriver::new(game, role, GtParams::default())))
+/// Who drives a car of `world_with`: a learner or IDM, or the AV playing a game in a role
+/// (with the default constants).
+#[derive(Clone)]
+enum Drives {
+    By(Driver),
+    Gt(Game, Role),
 }
 
-fn world_with(road: Road, cars: &[(&str, u32, f64, f64, Style, Driver)]) -> World {
+fn gt(game: Game, role: Role) -> Drives {
+    Drives::Gt(game, role)
+}
+
+fn world_with(road: Road, cars: &[(&str, u32, f64, f64, Style, Drives)]) -> World {
     let mut world = World::new(road.clone(), WorldParams::default(), 0);
-    for (name, lane, s, speed, style, driver) in cars {
-        let mut vehicle = Vehicle::new(name, &road, LaneId(*lane), *s, *speed, *style, driver.clone());
+    for (name, lane, s, speed, style, drives) in cars {
+        let mut vehicle = Vehicle::new(name, &road, LaneId(*lane), *s, *speed, *style, Driver::Idm);
         vehicle.target_speed = road.speed_limit(LaneId(*lane)); // everyone aims for the limit
-        world.add(vehicle);
+        match drives {
+            Drives::By(driver) => {
+                vehicle.driver = driver.clone();
+                world.add(vehicle)
+            }
+            Drives::Gt(game, role) => {
+                world.add_gt(vehicle, GtSetup { game: *game, role: *role, params: GtParams::default() })
+            }
+        };
     }
     world
 }
@@ -151,8 +168,8 @@ fn a_car_alongside_blocks_the_change_and_an_empty_lane_takes_it() {
     let stopped = Driver::Agent(AgentCommand::Direct(crate::dynamics::Command { accel: 0.0, preview: -4.0 }));
     let cars = [
         ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
-        ("stop", 1, 160.0, 0.0, Style::Normal, stopped),
-        ("beside", 0, 101.0, 20.0, Style::Normal, Driver::Idm),
+        ("stop", 1, 160.0, 0.0, Style::Normal, Drives::By(stopped)),
+        ("beside", 0, 101.0, 20.0, Style::Normal, Drives::By(Driver::Idm)),
     ];
     for game in Game::ALL {
         let mut world = world_with(merge_road(1000.0), &cars);
@@ -176,9 +193,9 @@ fn the_follower_yields_to_a_leader_that_merges_ahead_of_it() {
     ];
     let mut world = world_with(merge_road(1000.0), &cars);
     world.change_lane(VehicleId(0), LaneId(0));
-    let merging = plan_of(&mut world, VehicleId(1)).driver.decision.accel;
+    let merging = plan_of(&mut world, VehicleId(1)).memory.decision.accel;
     let mut alone = world_with(merge_road(1000.0), &cars[1..]);
-    let free = plan_of(&mut alone, VehicleId(0)).driver.decision.accel;
+    let free = plan_of(&mut alone, VehicleId(0)).memory.decision.accel;
     assert!(merging < free, "merging {merging} free {free}");
 }
 
@@ -186,8 +203,8 @@ fn the_follower_yields_to_a_leader_that_merges_ahead_of_it() {
 fn stage_cost_switches_terms_with_the_lane_change() {
     let cars = [
         ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
-        ("lead", 1, 125.0, 15.0, Style::Normal, Driver::Idm),
-        ("ac", 0, 90.0, 20.0, Style::Normal, Driver::Idm),
+        ("lead", 1, 125.0, 15.0, Style::Normal, Drives::By(Driver::Idm)),
+        ("ac", 0, 90.0, 20.0, Style::Normal, Drives::By(Driver::Idm)),
     ];
     let mut world = world_with(merge_road(1000.0), &cars);
     let c = CostParams::default();
@@ -210,11 +227,11 @@ fn a_broken_state_falls_back_to_braking_in_lane_and_says_so() {
         world_with(merge_road(1000.0), &[("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader))]);
     world.vehicle_mut(VehicleId(0)).state.yaw_rate = f64::NAN;
     let step = plan_of(&mut world, VehicleId(0));
-    assert!(step.driver.diagnostics.fallback.as_deref().is_some_and(|m| m.contains("not finite")));
-    assert_eq!(step.driver.diagnostics.fallbacks, 1);
+    assert!(step.memory.diagnostics.fallback.as_deref().is_some_and(|m| m.contains("not finite")));
+    assert_eq!(step.memory.diagnostics.fallbacks, 1);
     // It brakes at the fallback's 3 m/s^2, reached from its last command (0) at the jerk
     // bound: 4 m/s^3 over the 0.1 s period.
-    assert_eq!(step.driver.decision.accel, -GtParams::default().interaction.fallback_brake);
+    assert_eq!(step.memory.decision.accel, -GtParams::default().interaction.fallback_brake);
     assert!((step.command.accel + 0.4).abs() < 1e-12 && step.ramp, "{:?}", step.command);
     assert_eq!(step.command.preview, world.road().lane_center(LaneId(1)));
     assert_eq!(step.change_to, None);
@@ -298,8 +315,8 @@ fn a_lane_change_into_a_lane_that_is_no_option_any_more_is_not_binding() {
     let stopped = Driver::Agent(AgentCommand::Direct(crate::dynamics::Command { accel: 0.0, preview: -4.0 }));
     let cars = [
         ("ec", 1, 100.0, 20.0, Style::Normal, gt(Game::Nash, Role::Leader)),
-        ("stop", 1, 160.0, 0.0, Style::Normal, stopped),
-        ("beside", 0, 101.0, 20.0, Style::Normal, Driver::Idm),
+        ("stop", 1, 160.0, 0.0, Style::Normal, Drives::By(stopped)),
+        ("beside", 0, 101.0, 20.0, Style::Normal, Drives::By(Driver::Idm)),
     ];
     let mut world = world_with(merge_road(200.0), &cars);
     world.change_lane(VehicleId(0), LaneId(2));
@@ -325,7 +342,7 @@ fn the_expert_of_a_gt_car_is_its_own_planned_decision_with_its_own_tolerance() {
     let mut differs = false;
     for _ in 0..60 {
         let own = expert(&mut world, ec, Game::Stackelberg);
-        let planned = plan_of(&mut world, ec).driver.decision;
+        let planned = plan_of(&mut world, ec).memory.decision;
         assert_eq!(own, planned);
         let defaults = GtParams::default();
         differs |= expert_decision(world.scene(), ec, Game::Stackelberg, &defaults) != planned;
@@ -564,22 +581,23 @@ fn a_change_under_way_that_can_no_longer_cross_in_time_is_aborted_into_braking()
     let mut world = world_with(road, &[("ec", 1, 100.0, 7.0, Style::Normal, gt(Game::Nash, Role::Leader))]);
     world.change_lane(VehicleId(0), LaneId(0));
     let Driver::Gt(mut driver) = world.vehicle(VehicleId(0)).driver.clone() else { unreachable!() };
+    let setup = *world.gt_setup(VehicleId(0)).unwrap();
     driver.crossing_at = Some(world.time() + 4.0);
-    let step = plan(world.scene(), VehicleId(0), &driver, None);
-    let decision = step.driver.decision;
+    let step = plan(world.scene(), VehicleId(0), &setup, &driver, None);
+    let decision = step.memory.decision;
     assert!(decision.aborted && decision.lane_change == LaneChange::Keep, "{decision:?}");
     assert!(decision.accel < 0.0, "{decision:?}");
     assert_eq!(step.change_to, Some(LaneId(1)));
-    assert_eq!((step.driver.pace, step.driver.crossing_at), (None, None));
+    assert_eq!((step.memory.pace, step.memory.crossing_at), (None, None));
     // On schedule (crossing in 1.5 s: 10.5 m at 7 m/s) it carries on.
     driver.crossing_at = Some(world.time() + 1.5);
-    let step = plan(world.scene(), VehicleId(0), &driver, None);
-    assert!(!step.driver.decision.aborted && step.change_to.is_none(), "{:?}", step.driver.decision);
-    assert!(step.driver.crossing_at.is_some());
+    let step = plan(world.scene(), VehicleId(0), &setup, &driver, None);
+    assert!(!step.memory.decision.aborted && step.change_to.is_none(), "{:?}", step.memory.decision);
+    assert!(step.memory.crossing_at.is_some());
     // Driven on from the late change: it gives it up, brakes, and merges after all, from
     // a lower speed, without leaving the road.
     world.vehicle_mut(VehicleId(0)).driver =
-        Driver::Gt(Box::new(GtDriver { crossing_at: Some(world.time() + 4.0), ..*driver }));
+        Driver::Gt(Box::new(GtMemory { crossing_at: Some(world.time() + 4.0), ..*driver }));
     let mut aborted = false;
     for _ in 0..100 {
         world.advance(world.params().control_dt);
@@ -696,14 +714,15 @@ fn the_av_brakes_harder_than_the_games_allow_only_when_a_collision_is_otherwise_
     let ec = world.find("ec").unwrap();
     let step = plan_of(&mut world, ec);
     assert!(step.command.accel < -4.0 && step.command.accel >= -8.0, "{}", step.command.accel);
-    let limited = step.driver.diagnostics.safety.expect("the layer acted");
+    let limited = step.memory.diagnostics.safety.expect("the layer acted");
     assert!(limited.emergency && limited.car == other && limited.accel == step.command.accel);
-    assert_eq!((step.driver.diagnostics.overrides, step.driver.diagnostics.emergencies), (1, 1));
+    assert_eq!((step.memory.diagnostics.overrides, step.memory.diagnostics.emergencies), (1, 1));
     // Without the layer the AV brakes at most at the games' a_min.
-    let Driver::Gt(gt) = &mut world.vehicle_mut(ec).driver else { unreachable!() };
-    gt.params.safety.enabled = false;
+    let mut params = world.gt_params(ec);
+    params.safety.enabled = false;
+    world.set_gt_params(ec, params);
     let step = plan_of(&mut world, ec);
-    assert!(step.command.accel >= -4.0 && step.driver.diagnostics.safety.is_none());
+    assert!(step.command.accel >= -4.0 && step.memory.diagnostics.safety.is_none());
     // The same car holding its speed: no emergency.
     let (mut world, ec, _) = ec_and((0, 125.0, 25.0), |_| {});
     assert!(safety_limit(&mut world, ec, 0, 0.0).is_none_or(|limited| !limited.emergency));
@@ -728,23 +747,23 @@ fn the_safety_constants_are_checked() {
 fn an_exempt_command_jumps_and_is_counted_by_its_reason() {
     use super::driver::command_accel;
     use super::jerk::Exemption;
-    let mut driver = GtDriver::new(Game::Nash, Role::Leader, GtParams::default());
-    driver.params.decision.jerk.max_jerk = 2.5;
+    let mut jerk = GtParams::default().decision.jerk;
+    let mut diagnostics = Diagnostics::default();
+    jerk.max_jerk = 2.5;
     // Not exempt: the ramp's first step, 2.5 m/s^3 over 0.1 s, ramped by the world.
-    assert_eq!(command_accel(1.0, -4.0, 0.1, None, &mut driver), (0.75, true));
+    assert_eq!(command_accel(1.0, -4.0, 0.1, None, (&jerk, &mut diagnostics)), (0.75, true));
     // Exempt: the target at once, counted when the change exceeds 0.25 m/s^2.
-    assert_eq!(command_accel(1.0, -4.0, 0.1, Some(Exemption::Abort), &mut driver), (-4.0, false));
-    assert_eq!(command_accel(1.0, -4.0, 0.1, Some(Exemption::Emergency), &mut driver), (-4.0, false));
-    assert_eq!(command_accel(1.0, 0.8, 0.1, Some(Exemption::Emergency), &mut driver), (0.8, false));
-    let d = &driver.diagnostics;
-    assert_eq!((d.abort_jumps, d.emergency_jumps), (1, 1));
+    assert_eq!(command_accel(1.0, -4.0, 0.1, Some(Exemption::Abort), (&jerk, &mut diagnostics)), (-4.0, false));
+    assert_eq!(command_accel(1.0, -4.0, 0.1, Some(Exemption::Emergency), (&jerk, &mut diagnostics)), (-4.0, false));
+    assert_eq!(command_accel(1.0, 0.8, 0.1, Some(Exemption::Emergency), (&jerk, &mut diagnostics)), (0.8, false));
+    assert_eq!((diagnostics.abort_jumps, diagnostics.emergency_jumps), (1, 1));
     // A bound must be a number > 0.
     let mut params = GtParams::default();
     params.decision.jerk.max_jerk = 0.0;
     assert!(params.check().unwrap_err().contains("decision.jerk.max_jerk"));
     // The bound off: steps, never counted.
-    driver.params.decision.jerk.enabled = false;
-    assert_eq!(command_accel(1.0, -4.0, 0.1, None, &mut driver), (-4.0, false));
+    jerk.enabled = false;
+    assert_eq!(command_accel(1.0, -4.0, 0.1, None, (&jerk, &mut diagnostics)), (-4.0, false));
 }
 
 /// docs/parameters.md's jerk bound (m/s^3), read from the document, not the code.

@@ -6,7 +6,7 @@ use rand::RngExt;
 
 use super::{DriverSpec, Scenario, TrafficSpec, VehicleSpec};
 use crate::dynamics::LateralPath;
-use crate::gt::{GtDriver, GtParams};
+use crate::gt::{GtParams, GtSetup};
 use crate::world::{AgentCommand, Driver, Vehicle, World};
 
 impl Scenario {
@@ -20,14 +20,16 @@ impl Scenario {
         for spec in named {
             let driver = match spec.driver {
                 DriverSpec::Agent(_) => Driver::Agent(AgentCommand::Track),
-                DriverSpec::Idm => Driver::Idm,
-                DriverSpec::Gt { game, role, params } => Driver::Gt(Box::new(GtDriver::new(game, role, params))),
+                DriverSpec::Idm | DriverSpec::Gt { .. } => Driver::Idm,
             };
             let mut vehicle = Vehicle::new(&spec.name, &self.road, spec.lane, spec.s, spec.speed, spec.style, driver);
             vehicle.state.d = spec.d;
             vehicle.path = LateralPath::lane_change(spec.d, self.road.lane_center(spec.lane), 0.0);
             vehicle.target_speed = spec.target_speed;
-            world.add(vehicle);
+            match spec.driver {
+                DriverSpec::Gt { game, role, params } => world.add_gt(vehicle, GtSetup { game, role, params }),
+                _ => world.add(vehicle),
+            };
         }
         if let Some(traffic) = &self.traffic {
             place_traffic(&mut world, traffic);
@@ -54,13 +56,12 @@ fn place_traffic(world: &mut World, traffic: &TrafficSpec) {
             world.vehicles().iter().map(|v| v.state.s).fold(None, |m: Option<f64>, s| Some(m.map_or(s, |m| m.max(s))));
         let s = front.unwrap_or(3.0 * offset) + offset * world.rng().random_range(0.9..1.1);
         let name = format!("car{k}");
-        let (style, driver) = match traffic.gt {
+        match traffic.gt {
             Some(gt) if is_gt_car(k, traffic.count, gt.count) => {
-                (gt.style, Driver::Gt(Box::new(GtDriver::new(gt.game, gt.role, GtParams::default()))))
+                let vehicle = Vehicle::new(&name, world.road(), lane, s, speed, gt.style, Driver::Idm);
+                world.add_gt(vehicle, GtSetup { game: gt.game, role: gt.role, params: GtParams::default() })
             }
-            _ => (traffic.style, Driver::Idm),
+            _ => world.add(Vehicle::new(&name, world.road(), lane, s, speed, traffic.style, Driver::Idm)),
         };
-        let vehicle = Vehicle::new(&name, world.road(), lane, s, speed, style, driver);
-        world.add(vehicle);
     }
 }

@@ -5,7 +5,6 @@ use crate::dynamics::Style;
 use crate::gt::{Game, GtParams};
 use crate::road::LaneId;
 use crate::scene::Role;
-use crate::world::Driver;
 
 fn parse(text: &str) -> Result<Scenario, ScenarioError> {
     Scenario::parse("test.toml", text, &[])
@@ -253,9 +252,9 @@ fn a_gt_driver_loads_with_its_game_and_role() {
     let text =
         with("driver = { kind = \"agent\" }", "driver = { kind = \"gt\", game = \"nash\", role = \"follower\" }");
     let world = parse(&text).unwrap().build(0);
-    match &world.vehicles()[0].driver {
-        Driver::Gt(gt) => assert_eq!((gt.game, gt.role), (Game::Nash, Role::Follower)),
-        other => panic!("expected a gt driver, got {other:?}"),
+    match world.gt_setup(crate::VehicleId(0)) {
+        Some(setup) => assert_eq!((setup.game, setup.role), (Game::Nash, Role::Follower)),
+        None => panic!("expected a gt driver, got {:?}", world.vehicles()[0].driver),
     }
 }
 

@@ -251,8 +251,8 @@ impl Stepper {
     /// change.
     fn explain_decisions(&mut self, world: &World, decisions: &[Decision]) {
         for (index, decision) in decisions.iter().enumerate() {
-            if let (Decision::Gt(step), Driver::Gt(gt)) = (decision, &world.state.vehicles[index].driver) {
-                let explained = gt::explain(&world.scene, VehicleId(index as u32), gt, step);
+            if let (Decision::Gt(step), Driver::Gt(memory)) = (decision, &world.state.vehicles[index].driver) {
+                let explained = gt::explain(&world.scene, VehicleId(index as u32), world.setup(index), memory, step);
                 self.explanations.push(explained);
             }
         }

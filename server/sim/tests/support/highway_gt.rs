@@ -6,7 +6,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use arena_sim::{AtFault, Collision, Driver, DriverSpec, Scenario, World, builtin_scenario};
+use arena_sim::{AtFault, Collision, Driver, DriverSpec, Scenario, VehicleId, World, builtin_scenario};
 
 /// One collision of a run, as it was at the tick it happened.
 #[derive(Debug, Clone, PartialEq)]
@@ -95,12 +95,15 @@ pub struct Run {
 /// which the copy does not share, only places the traffic).
 pub fn with_safety(world: &World, enabled: bool) -> World {
     let mut copy = World::new(world.road().clone(), *world.params(), 0);
-    for vehicle in world.vehicles() {
-        let mut vehicle = vehicle.clone();
-        if let Driver::Gt(gt) = &mut vehicle.driver {
-            gt.params.safety.enabled = enabled;
-        }
-        copy.add(vehicle);
+    for (i, vehicle) in world.vehicles().iter().enumerate() {
+        match world.gt_setup(VehicleId(i as u32)) {
+            Some(&setup) => {
+                let mut setup = setup;
+                setup.params.safety.enabled = enabled;
+                copy.add_gt(vehicle.clone(), setup)
+            }
+            None => copy.add(vehicle.clone()),
+        };
     }
     copy
 }

@@ -247,7 +247,7 @@ fn framed(body: &[u8]) -> Vec<u8> {
 /// the protocol's codec, and a field of public type `T` at a known start ends where the
 /// bytes first decode as a whole `T`. Of the agents, the first one's vehicle and expert
 /// memory are found; then the world, and in it that vehicle's state (its eight floats
-/// follow the vehicle's name).
+/// begin the vehicle).
 #[derive(Debug, Clone)]
 struct Layout {
     world_seed: Range<usize>,
@@ -291,7 +291,8 @@ impl Layout {
         for _ in 0..index {
             at = span::<Vehicle>(body, at).end;
         }
-        let learner = span::<String>(body, at).end;
+        // A vehicle's state is its first field.
+        let learner = at;
         Layout {
             world_seed,
             overrides,

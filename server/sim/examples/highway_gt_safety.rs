@@ -30,10 +30,10 @@ fn ahead(world: &World, id: VehicleId, lane: LaneId) -> String {
         .filter(|&(i, v)| i != id.0 as usize && v.on_road() && v.state.s >= me.state.s)
         .filter(|&(i, v)| world.current_lane(VehicleId(i as u32)) == lane || v.target_lane == lane)
         .min_by(|a, b| a.1.state.s.total_cmp(&b.1.state.s));
-    found.map_or("-".to_string(), |(_, v)| {
+    found.map_or("-".to_string(), |(i, v)| {
         format!(
             "{} gap {:.1} v {:.1} d {:+.2}",
-            v.name,
+            world.name(VehicleId(i as u32)),
             v.state.s - me.state.s - length,
             v.state.lane_speed(),
             v.state.d

@@ -5,7 +5,7 @@
 //! zero offset). Prints the largest offset from the centre over the last 20 s.
 //! `cargo run --release -p arena-sim --example lane_keeping`
 
-use arena_sim::{AgentCommand, Command, Driver, LaneId, Road, Style, Vehicle, World, WorldParams};
+use arena_sim::{AgentCommand, Command, Driver, LaneId, Road, Style, Vehicle, VehicleSetup, World, WorldParams};
 
 const SPEEDS: [f64; 5] = [27.0, 30.0, 33.0, 36.0, 40.0];
 const SECONDS: f64 = 120.0;
@@ -15,9 +15,9 @@ const TAIL: f64 = 20.0;
 fn sway(style: Style, speed: f64, driver: Driver) -> f64 {
     let road = Road::straight(SECONDS * 45.0 + 100.0, 1, 4.0, 45.0);
     let mut world = World::new(road.clone(), WorldParams::default(), 0);
-    let mut car = Vehicle::new("car", &road, LaneId(0), 10.0, speed, style, driver);
+    let mut car = Vehicle::new(&road, LaneId(0), 10.0, speed, driver);
     car.state.d = 0.05;
-    let id = world.add(car);
+    let id = world.add(VehicleSetup::new("car", style), car);
     world.advance(SECONDS - TAIL);
     let (mut largest, mut stepper) = (0.0f64, arena_sim::Stepper::new());
     for _ in 0..(TAIL / world.params().physics_dt).round() as usize {

@@ -40,7 +40,8 @@ pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 pub use traffic::{IdmParams, speed_control};
 pub use world::{
     AgentCommand, AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver, Ending, LEARNER_SPEED_FACTOR, LaneEntry,
-    RngState, StateError, Stepper, Vehicle, World, WorldParams, WorldState, beside_decisions, rng_position,
+    RngState, StateError, Stepper, Vehicle, VehicleSetup, World, WorldParams, WorldState, beside_decisions,
+    rng_position,
 };
 
 /// The model and the AV's planner taken apart, for the examples and benches that reproduce

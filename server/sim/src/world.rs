@@ -89,18 +89,31 @@ pub enum AgentCommand {
     Direct(Command),
 }
 
-/// One vehicle: its state, its driver and what the driver is doing.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Vehicle {
+/// What a scenario fixes of a vehicle: its name, its style and Table I's parameters for
+/// it. The world keeps it beside its state (`World::setup`); it never changes there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VehicleSetup {
     /// Name from the scenario file (unique in a world).
     pub name: String,
-    /// The 8 states of eq. (8).
-    pub state: VehicleState,
     /// Driving style (Table I for steering; Table III for costs).
     pub style: Style,
-    /// Table I's parameters for `style`; fixed once the vehicle is in a world, which
-    /// prepares its physics step from them then.
+    /// Table I's parameters for `style`, from which the world prepares the vehicle's
+    /// physics step when it is added.
     pub driver_params: DriverParams,
+}
+
+impl VehicleSetup {
+    /// Vehicle `name` driving in `style`, with Table I's parameters for it.
+    pub fn new(name: &str, style: Style) -> VehicleSetup {
+        VehicleSetup { name: name.to_string(), style, driver_params: DriverParams::for_style(style) }
+    }
+}
+
+/// What changes of one vehicle: its state, its driver and what the driver is doing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Vehicle {
+    /// The 8 states of eq. (8).
+    pub state: VehicleState,
     /// Who drives.
     pub driver: Driver,
     /// The lane the vehicle is in or changing to.
@@ -130,13 +143,10 @@ pub struct Vehicle {
 
 impl Vehicle {
     /// A vehicle cruising along `lane` at `speed`.
-    pub fn new(name: &str, road: &Road, lane: LaneId, s: f64, speed: f64, style: Style, driver: Driver) -> Vehicle {
+    pub fn new(road: &Road, lane: LaneId, s: f64, speed: f64, driver: Driver) -> Vehicle {
         let d = road.lane_center(lane);
         Vehicle {
-            name: name.to_string(),
             state: VehicleState::cruising(s, d, speed),
-            style,
-            driver_params: DriverParams::for_style(style),
             driver,
             target_lane: lane,
             path: LateralPath::hold(d),
@@ -182,8 +192,8 @@ pub(crate) enum Decision {
 }
 
 /// The simulated world: the road and what a scenario fixes (bodies, timing, IDM's
-/// constants, each vehicle's prepared physics step and, for a `gt` car, its driver's
-/// game, role and constants), and its `WorldState`, everything that
+/// constants, each vehicle's name, style and prepared physics step and, for a `gt` car,
+/// its driver's game, role and constants), and its `WorldState`, everything that
 /// changes as it runs. A `Stepper` advances it; the world itself holds no scratch, no
 /// clock and no threads, so two worlds are the same world when their states are equal.
 /// Its fields are private so its invariants hold: every vehicle is in the sorted order,
@@ -201,6 +211,8 @@ pub struct World {
     /// Each vehicle's model constants over one physics step, by id, prepared when it is
     /// added (five divisions each): its body and driver parameters never change after.
     steps: Vec<dynamics::VehicleStep>,
+    /// Each vehicle's name, style and driver parameters, by id.
+    setups: Vec<VehicleSetup>,
     /// Each `gt` car's game, role and constants, by id (`None` for every other vehicle):
     /// fixed once it is added, as `steps` are.
     gt_setups: Vec<Option<GtSetup>>,
@@ -219,28 +231,30 @@ impl World {
             params,
             idm: IdmParams::default(),
             steps: Vec::new(),
+            setups: Vec::new(),
             gt_setups: Vec::new(),
             state: WorldState::new(seed),
         }
     }
 
-    /// Adds a vehicle a learner or IDM drives and returns its id; a `gt` car joins with
-    /// `add_gt`, which gives its driver a setup.
-    pub fn add(&mut self, vehicle: Vehicle) -> VehicleId {
+    /// Adds `vehicle`, set up as `setup`, which a learner or IDM drives, and returns its
+    /// id; a `gt` car joins with `add_gt`, which gives its driver a setup too.
+    pub fn add(&mut self, setup: VehicleSetup, vehicle: Vehicle) -> VehicleId {
         assert!(!matches!(vehicle.driver, Driver::Gt(_)), "a gt car joins a world with add_gt");
-        self.join(vehicle, None)
+        self.join(setup, vehicle, None)
     }
 
-    /// Adds a vehicle the game-theoretic AV drives with `setup`, its memory fresh, and
-    /// returns its id.
-    pub fn add_gt(&mut self, mut vehicle: Vehicle, setup: GtSetup) -> VehicleId {
+    /// Adds `vehicle`, set up as `setup`, which the game-theoretic AV drives as `gt` says,
+    /// its memory fresh, and returns its id.
+    pub fn add_gt(&mut self, setup: VehicleSetup, mut vehicle: Vehicle, gt: GtSetup) -> VehicleId {
         vehicle.driver = Driver::Gt(Box::default());
-        self.join(vehicle, Some(setup))
+        self.join(setup, vehicle, Some(gt))
     }
 
-    fn join(&mut self, vehicle: Vehicle, gt: Option<GtSetup>) -> VehicleId {
+    fn join(&mut self, setup: VehicleSetup, vehicle: Vehicle, gt: Option<GtSetup>) -> VehicleId {
         let (body, dt) = (&self.scene.vehicle, self.params.physics_dt);
-        self.steps.push(dynamics::VehicleStep::new(body, &vehicle.driver_params, dt));
+        self.steps.push(dynamics::VehicleStep::new(body, &setup.driver_params, dt));
+        self.setups.push(setup);
         self.gt_setups.push(gt);
         let state = &mut self.state;
         state.order.push(state.vehicles.len() as u32);
@@ -316,6 +330,31 @@ impl World {
         &self.state.vehicles[id.0 as usize]
     }
 
+    /// Every vehicle's name, style and driver parameters, by id.
+    pub fn setups(&self) -> &[VehicleSetup] {
+        &self.setups
+    }
+
+    /// Vehicle `id`'s name, style and driver parameters.
+    pub fn setup(&self, id: VehicleId) -> &VehicleSetup {
+        &self.setups[id.0 as usize]
+    }
+
+    /// Vehicle `id`'s name (unique in the world).
+    pub fn name(&self, id: VehicleId) -> &str {
+        &self.setup(id).name
+    }
+
+    /// Vehicle `id`'s driving style.
+    pub fn style(&self, id: VehicleId) -> Style {
+        self.setup(id).style
+    }
+
+    /// Vehicle `id`'s driver parameters (Table I for its style).
+    pub fn driver_params(&self, id: VehicleId) -> &DriverParams {
+        &self.setup(id).driver_params
+    }
+
     /// Every change to a vehicle between ticks comes through here: the scene drivers read
     /// and the decisions made ahead from it are then out of date.
     pub(crate) fn vehicle_mut(&mut self, id: VehicleId) -> &mut Vehicle {
@@ -329,7 +368,7 @@ impl World {
 
     /// Finds a vehicle by name.
     pub fn find(&self, name: &str) -> Option<VehicleId> {
-        self.state.vehicles.iter().position(|v| v.name == name).map(|i| VehicleId(i as u32))
+        self.setups.iter().position(|v| v.name == name).map(|i| VehicleId(i as u32))
     }
 
     /// The world as drivers see it, taken now if the last one is older than this tick.
@@ -367,8 +406,8 @@ impl World {
         self.scene_taken = None;
     }
 
-    /// The setup of vehicle `index`, which the game-theoretic AV drives.
-    fn setup(&self, index: usize) -> &GtSetup {
+    /// The setup of vehicle `index`'s driver, the game-theoretic AV.
+    fn gt_of(&self, index: usize) -> &GtSetup {
         self.gt_setups[index].as_ref().expect("a gt car has its setup")
     }
 
@@ -455,19 +494,19 @@ impl World {
     }
 
     fn take_scene(&mut self) {
-        let setups = &self.gt_setups;
+        let (setups, gt_setups) = (&self.setups, &self.gt_setups);
         let cars = self.state.vehicles.iter().enumerate().map(|(i, vehicle)| Car {
             id: VehicleId(i as u32),
             state: vehicle.state,
-            style: vehicle.style,
-            driver_params: vehicle.driver_params,
+            style: setups[i].style,
+            driver_params: setups[i].driver_params,
             lane: vehicle.target_lane,
             target_lane: vehicle.target_lane,
             target_speed: vehicle.target_speed,
             accel: vehicle.command.accel,
             preview: vehicle.command.preview,
             status: vehicle.status,
-            driver: driver_kind(&vehicle.driver, setups[i].as_ref()),
+            driver: driver_kind(&vehicle.driver, gt_setups[i].as_ref()),
             decided: None,
         });
         self.scene.refresh(self.state.time, cars);
@@ -504,7 +543,7 @@ impl World {
                 Decision::Idm(traffic::decide(&self.idm, scene, id, may_change_lanes))
             }
             (Status::Driving, Driver::Gt(memory)) => {
-                Decision::Gt(Box::new(gt::plan(scene, id, self.setup(index), memory, None)))
+                Decision::Gt(Box::new(gt::plan(scene, id, self.gt_of(index), memory, None)))
             }
         }
     }

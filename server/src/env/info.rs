@@ -160,7 +160,7 @@ fn continuous_label(world: &World, id: VehicleId, command: arena_sim::Command) -
 /// timings: infos are bit-reproducible, so decision times live in the benchmarks
 /// (docs/performance.md).
 pub fn add_diagnostics(info: &mut Info, world: &World) {
-    for vehicle in world.vehicles() {
+    for (vehicle, setup) in world.vehicles().iter().zip(world.setups()) {
         let Driver::Gt(gt) = &vehicle.driver else { continue };
         let d = &gt.diagnostics;
         let counts = [
@@ -171,7 +171,7 @@ pub fn add_diagnostics(info: &mut Info, world: &World) {
             i64::from(d.inexact),
         ];
         for (count, value) in DIAGNOSTIC_COUNTS.into_iter().zip(counts) {
-            info.values.push((format!("gt.{}.{count}", vehicle.name), InfoValue::I64(value)));
+            info.values.push((format!("gt.{}.{count}", setup.name), InfoValue::I64(value)));
         }
     }
 }

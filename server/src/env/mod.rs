@@ -672,7 +672,7 @@ fn episode_fits(episode: &Scenario, max_cycles: u32, expert: bool) -> Result<(),
 
 /// The refusal of a render that follows a vehicle the world does not have.
 fn unknown_vehicle(world: &World, name: &str) -> ErrorReply {
-    let names: Vec<&str> = world.vehicles().iter().map(|v| v.name.as_str()).collect();
+    let names: Vec<&str> = world.setups().iter().map(|v| v.name.as_str()).collect();
     let shown = if names.len() > 20 {
         format!("{}, ... ({} in all)", names[..20].join(", "), names.len())
     } else {

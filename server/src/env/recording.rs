@@ -100,10 +100,11 @@ pub fn start(world: &World, learners: &[&str]) -> WorldStart {
     let vehicles = world
         .vehicles()
         .iter()
+        .zip(world.setups())
         .enumerate()
-        .map(|(i, vehicle)| VehicleInfo {
-            name: vehicle.name.clone(),
-            learner: learners.contains(&vehicle.name.as_str()),
+        .map(|(i, (vehicle, setup))| VehicleInfo {
+            name: setup.name.clone(),
+            learner: learners.contains(&setup.name.as_str()),
             driver: match (world.gt_setup(VehicleId(i as u32)), &vehicle.driver) {
                 (None, Driver::Agent(_)) => DriverInfo::Learner,
                 (None, _) => DriverInfo::Idm,
@@ -118,7 +119,7 @@ pub fn start(world: &World, learners: &[&str]) -> WorldStart {
                     },
                 },
             },
-            style: style_of(vehicle.style),
+            style: style_of(setup.style),
             length: body.length,
             width: body.width,
         })

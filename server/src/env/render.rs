@@ -172,13 +172,13 @@ pub fn rgb(
     let reach = window.hypot(height as f64 / camera.scale) / 2.0 + 5.0;
     // A car that left the road stays where it stopped; one that drove off its end is gone.
     let shown = |v: &&Vehicle| v.status != Status::Exited;
-    for vehicle in world.vehicles().iter().filter(shown) {
+    for (i, vehicle) in world.vehicles().iter().enumerate().filter(|(_, v)| shown(v)) {
         let pose = world.road().to_global(vehicle.state.s, vehicle.state.d, vehicle.state.heading);
         if (pose.x - camera.centre.0).hypot(pose.y - camera.centre.1) > reach {
             continue;
         }
         let (half_length, half_width) = (world.vehicle_params().length / 2.0, world.vehicle_params().width / 2.0);
-        if focus.is_some_and(|id| world.vehicle(id).name == vehicle.name) {
+        if focus == Some(VehicleId(i as u32)) {
             draw_box(
                 &mut canvas,
                 &camera,
@@ -221,8 +221,7 @@ fn caption(canvas: &mut Canvas, world: &World, focus: Option<VehicleId>, end: Op
     let k = canvas.size;
     let mut text = format!("T {:.1} S", world.time());
     if let Some(id) = focus {
-        let vehicle = world.vehicle(id);
-        text += &format!("  {} {:.1} M/S", vehicle.name, vehicle.state.vx);
+        text += &format!("  {} {:.1} M/S", world.name(id), world.vehicle(id).state.vx);
     }
     canvas.text(2 * k, 2 * k, &text, TEXT);
     if let Some(end) = end {
@@ -411,7 +410,7 @@ pub fn ansi(world: &World, focus: Option<VehicleId>) -> String {
         let v = world.vehicle(id);
         text += &format!(
             "   {}: lane {}, {:5.1} m/s, s = {:7.1} m",
-            v.name,
+            world.name(id),
             world.road().nearest_lane(v.state.d).0,
             v.state.vx,
             v.state.s

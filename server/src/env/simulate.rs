@@ -99,6 +99,6 @@ fn sample(world: &mut World, id: VehicleId, sum: &mut StepCost) {
     sum.squares = sum.squares + cost.squared();
     sum.samples += 1;
     sum.speed += vehicle.state.lane_speed();
-    sum.weighted += cost.weighted(vehicle.style);
+    sum.weighted += cost.weighted(world.style(id));
     sum.risk += risk::risk(world, id);
 }

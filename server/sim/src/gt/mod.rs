@@ -24,7 +24,7 @@
 //! let params = world.gt_params(ec);
 //! let decision = expert_decision(world.scene(), ec, Game::Stackelberg, &params);
 //! assert!(decision.accel.is_finite());
-//! let j = stage_cost(world.scene(), ec, &params).weighted(world.vehicle(ec).style);
+//! let j = stage_cost(world.scene(), ec, &params).weighted(world.style(ec));
 //! assert!(j.is_finite() && j >= 0.0);
 //! ```
 

@@ -4,7 +4,7 @@ use crate::dynamics::Style;
 use crate::road::LaneChange;
 use crate::road::{LaneId, Pose, Road, Section};
 use crate::scene::Role;
-use crate::world::{AgentCommand, Driver, Ending, Status, Vehicle, VehicleId, World, WorldParams};
+use crate::world::{AgentCommand, Driver, Ending, Status, Vehicle, VehicleId, VehicleSetup, World, WorldParams};
 
 /// What the AV would decide in vehicle `id`'s place, with the vehicle's own constants.
 fn expert(world: &mut World, id: VehicleId, game: Game) -> Decision {
@@ -133,15 +133,16 @@ fn gt(game: Game, role: Role) -> Drives {
 fn world_with(road: Road, cars: &[(&str, u32, f64, f64, Style, Drives)]) -> World {
     let mut world = World::new(road.clone(), WorldParams::default(), 0);
     for (name, lane, s, speed, style, drives) in cars {
-        let mut vehicle = Vehicle::new(name, &road, LaneId(*lane), *s, *speed, *style, Driver::Idm);
+        let mut vehicle = Vehicle::new(&road, LaneId(*lane), *s, *speed, Driver::Idm);
         vehicle.target_speed = road.speed_limit(LaneId(*lane)); // everyone aims for the limit
+        let setup = VehicleSetup::new(name, *style);
         match drives {
             Drives::By(driver) => {
                 vehicle.driver = driver.clone();
-                world.add(vehicle)
+                world.add(setup, vehicle)
             }
             Drives::Gt(game, role) => {
-                world.add_gt(vehicle, GtSetup { game: *game, role: *role, params: GtParams::default() })
+                world.add_gt(setup, vehicle, GtSetup { game: *game, role: *role, params: GtParams::default() })
             }
         };
     }
@@ -651,9 +652,9 @@ fn ec_and(other: (u32, f64, f64), set: impl FnOnce(&mut Vehicle)) -> (World, Veh
     let (lane, s, speed) = other;
     let cars = [("ec", 0, 100.0, 25.0, Style::Normal, gt(Game::Stackelberg, Role::Leader))];
     let mut world = world_with(merge_road(1000.0), &cars);
-    let mut vehicle = Vehicle::new("other", world.road(), LaneId(lane), s, speed, Style::Normal, Driver::Idm);
+    let mut vehicle = Vehicle::new(world.road(), LaneId(lane), s, speed, Driver::Idm);
     set(&mut vehicle);
-    let other = world.add(vehicle);
+    let other = world.add(VehicleSetup::new("other", Style::Normal), vehicle);
     let ec = world.find("ec").unwrap();
     (world, ec, other)
 }
@@ -708,9 +709,9 @@ fn the_av_brakes_harder_than_the_games_allow_only_when_a_collision_is_otherwise_
     let road = straight_road(1, &[]);
     let cars = [("ec", 0, 100.0, 25.0, Style::Normal, gt(Game::Stackelberg, Role::Leader))];
     let mut world = world_with(road.clone(), &cars);
-    let mut lead = Vehicle::new("lead", &road, LaneId(0), 125.0, 25.0, Style::Normal, Driver::Idm);
+    let mut lead = Vehicle::new(&road, LaneId(0), 125.0, 25.0, Driver::Idm);
     lead.command.accel = -6.0;
-    let other = world.add(lead);
+    let other = world.add(VehicleSetup::new("lead", Style::Normal), lead);
     let ec = world.find("ec").unwrap();
     let step = plan_of(&mut world, ec);
     assert!(step.command.accel < -4.0 && step.command.accel >= -8.0, "{}", step.command.accel);

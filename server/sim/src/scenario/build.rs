@@ -7,7 +7,7 @@ use rand::RngExt;
 use super::{DriverSpec, Scenario, TrafficSpec, VehicleSpec};
 use crate::dynamics::LateralPath;
 use crate::gt::{GtParams, GtSetup};
-use crate::world::{AgentCommand, Driver, Vehicle, World};
+use crate::world::{AgentCommand, Driver, Vehicle, VehicleSetup, World};
 
 impl Scenario {
     /// Builds the world at time zero; `seed` drives the random traffic. The named
@@ -22,13 +22,14 @@ impl Scenario {
                 DriverSpec::Agent(_) => Driver::Agent(AgentCommand::Track),
                 DriverSpec::Idm | DriverSpec::Gt { .. } => Driver::Idm,
             };
-            let mut vehicle = Vehicle::new(&spec.name, &self.road, spec.lane, spec.s, spec.speed, spec.style, driver);
+            let setup = VehicleSetup::new(&spec.name, spec.style);
+            let mut vehicle = Vehicle::new(&self.road, spec.lane, spec.s, spec.speed, driver);
             vehicle.state.d = spec.d;
             vehicle.path = LateralPath::lane_change(spec.d, self.road.lane_center(spec.lane), 0.0);
             vehicle.target_speed = spec.target_speed;
             match spec.driver {
-                DriverSpec::Gt { game, role, params } => world.add_gt(vehicle, GtSetup { game, role, params }),
-                _ => world.add(vehicle),
+                DriverSpec::Gt { game, role, params } => world.add_gt(setup, vehicle, GtSetup { game, role, params }),
+                _ => world.add(setup, vehicle),
             };
         }
         if let Some(traffic) = &self.traffic {
@@ -58,10 +59,14 @@ fn place_traffic(world: &mut World, traffic: &TrafficSpec) {
         let name = format!("car{k}");
         match traffic.gt {
             Some(gt) if is_gt_car(k, traffic.count, gt.count) => {
-                let vehicle = Vehicle::new(&name, world.road(), lane, s, speed, gt.style, Driver::Idm);
-                world.add_gt(vehicle, GtSetup { game: gt.game, role: gt.role, params: GtParams::default() })
+                let vehicle = Vehicle::new(world.road(), lane, s, speed, Driver::Idm);
+                let setup = GtSetup { game: gt.game, role: gt.role, params: GtParams::default() };
+                world.add_gt(VehicleSetup::new(&name, gt.style), vehicle, setup)
             }
-            _ => world.add(Vehicle::new(&name, world.road(), lane, s, speed, traffic.style, Driver::Idm)),
+            _ => {
+                let vehicle = Vehicle::new(world.road(), lane, s, speed, Driver::Idm);
+                world.add(VehicleSetup::new(&name, traffic.style), vehicle)
+            }
         };
     }
 }

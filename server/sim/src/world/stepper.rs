@@ -252,7 +252,7 @@ impl Stepper {
     fn explain_decisions(&mut self, world: &World, decisions: &[Decision]) {
         for (index, decision) in decisions.iter().enumerate() {
             if let (Decision::Gt(step), Driver::Gt(memory)) = (decision, &world.state.vehicles[index].driver) {
-                let explained = gt::explain(&world.scene, VehicleId(index as u32), world.setup(index), memory, step);
+                let explained = gt::explain(&world.scene, VehicleId(index as u32), world.gt_of(index), memory, step);
                 self.explanations.push(explained);
             }
         }
@@ -329,7 +329,7 @@ impl Stepper {
     /// Integrates every vehicle on the road over one physics step, all of them together
     /// (`dynamics::Fleet`).
     fn integrate(&mut self, world: &mut World) {
-        let World { scene, params, steps, state, .. } = world;
+        let World { scene, params, steps, setups, state, .. } = world;
         let time = state.time;
         // Which step of its control period this is: a ramped acceleration is a linear
         // blend reaching the command at the period's last step.
@@ -347,7 +347,7 @@ impl Stepper {
             vehicle.command.preview = match vehicle.driver {
                 Driver::Agent(AgentCommand::Direct(command)) => command.preview,
                 Driver::Gt(_) => vehicle.command.preview,
-                _ => vehicle.path.preview(time, vehicle.driver_params.preview_time),
+                _ => vehicle.path.preview(time, setups[index].driver_params.preview_time),
             };
             let mut command = vehicle.command;
             if let Some(from) = vehicle.ramp_from.filter(|_| phase < per_control) {

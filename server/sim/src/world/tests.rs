@@ -51,18 +51,15 @@ fn ten_minutes_of_dense_traffic_without_a_collision() {
 fn a_car_that_does_not_brake_hits_a_stopped_one() {
     let road = Road::straight(1000.0, 2, 4.0, 30.0);
     let mut world = World::new(road.clone(), WorldParams::default(), 0);
-    let stopped = world.add(Vehicle::new(
-        "stopped",
-        &road,
-        LaneId(0),
-        100.0,
-        0.0,
-        Style::Normal,
-        Driver::Agent(AgentCommand::Track),
-    ));
+    let stopped = world.add(
+        VehicleSetup::new("stopped", Style::Normal),
+        Vehicle::new(&road, LaneId(0), 100.0, 0.0, Driver::Agent(AgentCommand::Track)),
+    );
     let direct = Driver::Agent(AgentCommand::Direct(Command { accel: 0.0, preview: 0.0 }));
-    let blind = world.add(Vehicle::new("blind", &road, LaneId(0), 20.0, 20.0, Style::Normal, direct));
-    let beside = world.add(Vehicle::new("beside", &road, LaneId(1), 20.0, 20.0, Style::Normal, Driver::Idm));
+    let blind =
+        world.add(VehicleSetup::new("blind", Style::Normal), Vehicle::new(&road, LaneId(0), 20.0, 20.0, direct));
+    let beside =
+        world.add(VehicleSetup::new("beside", Style::Normal), Vehicle::new(&road, LaneId(1), 20.0, 20.0, Driver::Idm));
     world.vehicle_mut(stopped).target_speed = 0.0;
     world.advance(6.0);
     assert_eq!(world.collisions(), vec![Collision { rear: blind, front: stopped, at_fault: AtFault::Rear }]);
@@ -75,9 +72,11 @@ fn a_car_that_cuts_in_at_a_short_gap_is_at_fault() {
     let road = Road::straight(1000.0, 2, 4.0, 30.0);
     let mut world = World::new(road.clone(), WorldParams::default(), 0);
     let direct = Driver::Agent(AgentCommand::Direct(Command { accel: 0.0, preview: 0.0 }));
-    let behind = world.add(Vehicle::new("behind", &road, LaneId(0), 20.0, 20.0, Style::Normal, direct));
+    let behind =
+        world.add(VehicleSetup::new("behind", Style::Normal), Vehicle::new(&road, LaneId(0), 20.0, 20.0, direct));
     let track = Driver::Agent(AgentCommand::Track);
-    let cutter = world.add(Vehicle::new("cutter", &road, LaneId(1), 45.0, 12.0, Style::Normal, track));
+    let cutter =
+        world.add(VehicleSetup::new("cutter", Style::Normal), Vehicle::new(&road, LaneId(1), 45.0, 12.0, track));
     world.change_lane(cutter, LaneId(0));
     world.advance(6.0);
     let collisions = world.collisions();
@@ -95,18 +94,14 @@ fn idm_stops_before_a_lane_end_when_it_cannot_merge() {
         &[(LaneId(1), 150.0)],
     );
     let mut world = World::new(road.clone(), WorldParams::default(), 0);
-    let merging = world.add(Vehicle::new("m", &road, LaneId(1), 10.0, 15.0, Style::Normal, Driver::Idm));
+    let merging =
+        world.add(VehicleSetup::new("m", Style::Normal), Vehicle::new(&road, LaneId(1), 10.0, 15.0, Driver::Idm));
     // A wall of slow cars on the through lane leaves no gap to merge into.
     for k in 0..40 {
-        world.add(Vehicle::new(
-            &format!("w{k}"),
-            &road,
-            LaneId(0),
-            k as f64 * 6.0,
-            0.0,
-            Style::Normal,
-            Driver::Agent(AgentCommand::Track),
-        ));
+        world.add(
+            VehicleSetup::new(&format!("w{k}"), Style::Normal),
+            Vehicle::new(&road, LaneId(0), k as f64 * 6.0, 0.0, Driver::Agent(AgentCommand::Track)),
+        );
         let last = VehicleId(world.vehicles().len() as u32 - 1);
         world.vehicle_mut(last).target_speed = 0.0;
     }
@@ -165,9 +160,9 @@ fn trajectories_with(
     let mut out: std::collections::BTreeMap<String, Vec<u64>> = std::collections::BTreeMap::new();
     for _ in 0..ticks {
         stepper.tick(&mut world);
-        for vehicle in world.vehicles() {
+        for (i, vehicle) in world.vehicles().iter().enumerate() {
             let bits = vehicle.state.to_array().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            out.entry(vehicle.name.clone()).or_default().extend(bits);
+            out.entry(world.name(VehicleId(i as u32)).to_string()).or_default().extend(bits);
         }
     }
     out
@@ -316,9 +311,9 @@ fn a_stepper_dropped_and_built_again_mid_episode_changes_no_bit() {
                 stepper.set_decision_threads(1 + tick / 10 % 3);
             }
             stepper.tick(&mut world);
-            for vehicle in world.vehicles() {
+            for (i, vehicle) in world.vehicles().iter().enumerate() {
                 let bits = vehicle.state.to_array().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                out.entry(vehicle.name.clone()).or_default().extend(bits);
+                out.entry(world.name(VehicleId(i as u32)).to_string()).or_default().extend(bits);
             }
         }
         assert!(out == reference, "{name}: a new stepper changed the world");

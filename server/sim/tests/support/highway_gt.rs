@@ -96,13 +96,15 @@ pub struct Run {
 pub fn with_safety(world: &World, enabled: bool) -> World {
     let mut copy = World::new(world.road().clone(), *world.params(), 0);
     for (i, vehicle) in world.vehicles().iter().enumerate() {
-        match world.gt_setup(VehicleId(i as u32)) {
-            Some(&setup) => {
-                let mut setup = setup;
-                setup.params.safety.enabled = enabled;
-                copy.add_gt(vehicle.clone(), setup)
+        let id = VehicleId(i as u32);
+        let setup = world.setup(id).clone();
+        match world.gt_setup(id) {
+            Some(&gt) => {
+                let mut gt = gt;
+                gt.params.safety.enabled = enabled;
+                copy.add_gt(setup, vehicle.clone(), gt)
             }
-            None => copy.add(vehicle.clone()),
+            None => copy.add(setup, vehicle.clone()),
         };
     }
     copy
@@ -122,7 +124,7 @@ pub fn run_world(mut world: World, seconds: f64) -> Run {
             crashes.push(Crash {
                 time: world.time(),
                 collision,
-                names: [rear.name.clone(), front.name.clone()],
+                names: [collision.rear, collision.front].map(|id| world.name(id).to_string()),
                 speeds: [rear.state.lane_speed(), front.state.lane_speed()],
                 drivers: [driver_name(&rear.driver), driver_name(&front.driver)],
             });

@@ -58,11 +58,13 @@ const LEGEND: [(Rgb, &str); 5] = [
     (LANE_END[0], "LANE END"),
 ];
 
-fn colour(vehicle: &Vehicle) -> Rgb {
+/// Vehicle `id`'s colour: by its driver, a game-theoretic car's by its style.
+fn colour(world: &World, id: VehicleId) -> Rgb {
+    let vehicle = world.vehicle(id);
     match (vehicle.status, &vehicle.driver) {
         (Status::Crashed, _) => CRASHED,
         (_, Driver::Agent(_)) => LEARNER,
-        (_, Driver::Gt(_)) => palette::gt(style_of(vehicle.style)),
+        (_, Driver::Gt(_)) => palette::gt(style_of(world.style(id))),
         (_, Driver::Idm) => IDM,
     }
 }
@@ -187,7 +189,13 @@ pub fn rgb(
                 TEXT,
             );
         }
-        draw_box(&mut canvas, &camera, (pose.x, pose.y, pose.heading), (half_length, half_width), colour(vehicle));
+        draw_box(
+            &mut canvas,
+            &camera,
+            (pose.x, pose.y, pose.heading),
+            (half_length, half_width),
+            colour(world, VehicleId(i as u32)),
+        );
     }
     caption(&mut canvas, world, focus, end);
     Frame::Rgb { height, width, pixels }

@@ -182,7 +182,7 @@ pub const LEARNER_SPEED_FACTOR: f64 = 1.2;
 
 /// What one driver decided for the coming control period.
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) enum Decision {
+enum Decision {
     /// Apply this acceleration (learners, and vehicles that no longer drive).
     Accel(f64),
     /// IDM + MOBIL.

@@ -96,6 +96,7 @@ impl GtParams {
             ("decision.costs.lead_range", c.lead_range),
             ("decision.game.follower_tolerance", g.follower_tolerance),
             ("decision.game.speed_min", g.speed_min),
+            ("mpc.lane_keeping_bound", self.mpc.lane_keeping_bound),
         ];
         for (key, value) in non_negative {
             if !(value.is_finite() && value >= 0.0) {
@@ -127,6 +128,7 @@ impl GtParams {
             ("safety.response_time", safety.response_time),
             ("safety.brake", safety.brake),
             ("safety.lead_brake", safety.lead_brake),
+            ("safety.gap_braking", safety.gap_braking),
         ] {
             if !(value.is_finite() && value > 0.0) {
                 return Err(format!("{key} must be a number > 0, not {value}"));
@@ -138,7 +140,11 @@ impl GtParams {
                 safety.brake, safety.emergency_brake
             ));
         }
-        for (key, value) in [("safety.margin", safety.margin), ("safety.cut_in_time", safety.cut_in_time)] {
+        for (key, value) in [
+            ("safety.margin", safety.margin),
+            ("safety.cut_in_time", safety.cut_in_time),
+            ("safety.follower_response", safety.follower_response),
+        ] {
             if !(value.is_finite() && value >= 0.0) {
                 return Err(format!("{key} must be a number >= 0, not {value}"));
             }
@@ -322,6 +328,9 @@ fn side_option(
     {
         return None;
     }
+    if car.lane_change().sigma() != side.sigma() && !gap_open(scene, id, lane, params) {
+        return None;
+    }
     let ac = scene.nearest(lane, ego.s, params.interaction.interaction_range, &[id]);
     let adjacent = ac.map(|ac| {
         let others = [id, ac.id];
@@ -342,6 +351,46 @@ fn side_option(
         adjacent,
     };
     Some((option, ac.map(|ac| ac.id)))
+}
+
+/// Whether car `id` on the open road may start a lane change into `lane`: the gap there
+/// asks no one to brake harder than `gap_braking`, and the car behind it keeps RSS's
+/// distance with a driver's response time (`follower_response`, `safety`). Out of a lane that ends, the games and `merge` decide alone.
+fn gap_open(scene: &Scene, id: VehicleId, lane: LaneId, params: &GtParams) -> bool {
+    let car = scene.car(id);
+    let safety = &params.safety;
+    let open_road = scene.road.lane_end(car.lane) >= scene.road.length();
+    !(safety.enabled && open_road)
+        || (safety::gap_braking(scene, id, lane, safety) <= safety.gap_braking
+            && safety::follower_keeps_distance(scene, id, lane, safety))
+}
+
+/// Whether car `id`, changing lanes on the open road, gives its change up: the gap it goes
+/// into asks someone to brake harder than the games' firmest braking (-a_min), and the
+/// lane it leaves asks less. Before it crosses the line only: past it, it is in the lane.
+fn gives_up(scene: &Scene, id: VehicleId, params: &GtParams) -> bool {
+    let car = scene.car(id);
+    let safety = &params.safety;
+    let open_road = scene.road.lane_end(car.lane) >= scene.road.length();
+    if !safety.enabled || !open_road || car.target_lane == car.lane {
+        return false;
+    }
+    let into = safety::gap_braking(scene, id, car.target_lane, safety);
+    into > -params.decision.game.accel_min && safety::gap_braking(scene, id, car.lane, safety) < into
+}
+
+/// Car `id`'s situation with its own lane as its only option: the game a follower without
+/// a partner plays, and a car that gives its lane change up.
+fn own_lane_only(scene: &Scene, id: VehicleId, params: &GtParams) -> Situation {
+    let (mut own, _) = situation(scene, id, params);
+    own.sides = [None, None];
+    own.committed = None;
+    own
+}
+
+/// What car `id` decides back in its own lane, alone (eq. 15 with no side).
+fn keep_alone(scene: &Scene, id: VehicleId, params: &GtParams) -> Decision {
+    own_lane_only(scene, id, params).decide(Game::Nash, &params.decision)
 }
 
 /// Car `id`'s situation as the EC of a game, and the adjacent car of each side.
@@ -465,12 +514,7 @@ enum Followed {
 /// its best response to the partner's decision of this period (Stackelberg), or, with no
 /// partner in play, the game of its own lane alone.
 fn follow_game(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Followed {
-    let alone = || {
-        let (mut own, _) = situation(scene, id, params);
-        own.sides = [None, None];
-        own.committed = None;
-        Followed::Alone(own)
-    };
+    let alone = || Followed::Alone(own_lane_only(scene, id, params));
     let Some(partner) = partner(scene, id, params) else { return alone() };
     let (view, adjacent) = situation(scene, partner, params);
     let side = LaneChange::between(scene.car(partner).lane, scene.car(id).lane);
@@ -513,15 +557,22 @@ fn follow(scene: &Scene, id: VehicleId, game: Game, params: &GtParams) -> Decisi
 }
 
 /// The field car `id` plans in: the other cars near it and the road's lines (edges
-/// one-sided when `one_sided`).
-fn field_around(scene: &Scene, id: VehicleId, params: &FieldParams, one_sided: bool) -> Field {
+/// one-sided when `one_sided`). Keeping `keeping` lane, only the cars ahead and beside,
+/// and the lines of that lane (`field::lane_lines`): a car closing from behind is not
+/// steered away from, and the road's field is least at the lane's centre.
+fn field_around(scene: &Scene, id: VehicleId, params: &FieldParams, one_sided: bool, keeping: Option<LaneId>) -> Field {
     let me = scene.car(id).state.s;
+    let length = scene.vehicle.length;
     let obstacles = scene
         .around(me, params.range)
-        .filter(|car| car.id != id)
+        .filter(|car| car.id != id && (keeping.is_none() || car.state.s > me - length))
         .map(|car| Obstacle { s: car.state.s, d: car.state.d, heading: car.state.heading, speed: car.speed() })
         .collect();
-    Field::new(*params, scene.vehicle.width, obstacles, field::road_lines(&scene.road, params, one_sided))
+    let lines = match keeping {
+        Some(lane) => field::lane_lines(&scene.road, lane, me, params),
+        None => field::road_lines(&scene.road, params, one_sided),
+    };
+    Field::new(*params, scene.vehicle.width, obstacles, lines)
 }
 
 /// Plans Y_p toward `target` lane for car `id`, driven by `setup` with `memory`, at
@@ -550,15 +601,23 @@ fn plan_motion_with(
     mpc: Option<&mut Mpc>,
 ) -> Result<MpcSolution, MpcError> {
     let car = scene.car(id);
-    let field = field_around(scene, id, &params.field, params.decision.merge.enabled);
+    let keeping = (target == car.lane).then_some(target);
+    let field = field_around(scene, id, &params.field, params.decision.merge.enabled, keeping);
     let road = &scene.road;
     let w = road.lane_width();
     let rightmost = road.lane_center(LaneId(road.lane_count() as u32 - 1));
     let margin = mpc_params.preview_margin;
+    let previous_preview = memory.preview.unwrap_or(car.preview);
+    let mut preview_bounds = (rightmost - margin.min(w), margin.min(w));
+    if keeping.is_some() {
+        let (centre, bound) = (road.lane_center(target), mpc_params.lane_keeping_bound);
+        let (low, high) = ((centre - bound).min(previous_preview), (centre + bound).max(previous_preview));
+        preview_bounds = (preview_bounds.0.max(low), preview_bounds.1.min(high));
+    }
     let problem = MpcProblem {
         state: car.state,
         accel,
-        previous_preview: memory.preview.unwrap_or(car.preview),
+        previous_preview,
         target: road.lane_center(target),
         curvature: road.curvature(car.state.s),
         vehicle: &scene.vehicle,
@@ -566,7 +625,7 @@ fn plan_motion_with(
         dt: scene.control_dt,
         field: &field,
         nominal: &memory.plan,
-        preview_bounds: (rightmost - margin.min(w), margin.min(w)),
+        preview_bounds,
     };
     match mpc {
         Some(mpc) => mpc.solve(&problem, mpc_params),
@@ -685,6 +744,9 @@ pub fn plan(scene: &Scene, id: VehicleId, setup: &GtSetup, memory: &GtMemory, mp
     let params = &setup.params;
     let mut decision = decide(scene, id, setup, memory);
     let leads = setup.role == Role::Leader;
+    if leads && !decision.aborted && gives_up(scene, id, params) {
+        decision = Decision { aborted: true, ..keep_alone(scene, id, params) };
+    }
     let starts = decision.lane_change != LaneChange::Keep && car.target_lane == car.lane && leads;
     let aborts = decision.aborted && car.target_lane != car.lane && leads;
     let target = if starts { scene.lane_beside(car.lane, decision.lane_change) } else { None };

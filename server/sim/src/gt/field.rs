@@ -171,6 +171,18 @@ pub fn road_lines(road: &Road, p: &FieldParams, one_sided: bool) -> Vec<Line> {
 }
 
 /// The field a car sees: obstacles and lines, evaluated at predicted instants.
+/// The lines of lane keeping in `lane` at `s`: the two that bound it, each at the higher
+/// of their peaks (an edge's, if either is one), so that the road's part of the field is
+/// least at the lane's centre. Eq. (21) as `road_lines` draws it is least where an edge's
+/// and a lane line's slopes balance, 0.13 m off the centre of an outer lane.
+pub fn lane_lines(road: &Road, lane: LaneId, s: f64, p: &FieldParams) -> Vec<Line> {
+    let (centre, half) = (road.lane_center(lane), 0.5 * road.lane_width());
+    let bounds = |line: &&Line| (line.from..=line.to).contains(&s) && ((line.d - centre).abs() - half).abs() < 1e-9;
+    let peak = road_lines(road, p, false).iter().filter(bounds).map(|line| line.peak).fold(p.line_peak, f64::max);
+    let to = road.lane_end(lane);
+    [centre + half, centre - half].map(|d| Line { d, peak, from: 0.0, to, road_side: 0 }).to_vec()
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct Field {
     /// The constants.

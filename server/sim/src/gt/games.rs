@@ -588,15 +588,18 @@ impl Situation {
         self.fitted_duration(accel, sigma, params).unwrap_or(params.merge.min_duration.min(LANE_CHANGE_DURATION))
     }
 
-    /// Whether EC, in an ending lane, is more than a quarter lane off its lane's centre
-    /// while it changes no lane and still drives at `crossing_speed` or more: back from an
-    /// aborted change. It starts none until it has settled (or nearly stopped, when it
-    /// can no longer move sideways), so that it does not turn back at once into the change
-    /// it gave up (`merge`).
+    /// Whether EC is more than a quarter lane off its lane's centre while it changes no
+    /// lane: back from an aborted change, or just across the line of one it finished. It
+    /// starts none until it has settled, so that it does not turn back at once into the
+    /// change it gave up. In an ending lane (`merge`), only while it still drives at
+    /// `crossing_speed` or more: nearly stopped, it can no longer move sideways.
     fn unsettled(&self, params: &DecisionParams) -> bool {
         let off = (self.ego.now.d - self.keep.centre).abs() > 0.25 * self.lane_width;
         let m = &params.merge;
-        m.enabled && self.lane_end.is_some() && off && self.ego.now.speed >= m.crossing_speed
+        match self.lane_end {
+            None => off,
+            Some(_) => m.enabled && off && self.ego.now.speed >= m.crossing_speed,
+        }
     }
 
     /// Whether EC can still stop `margin` short of its lane's end, braking towards a_min

@@ -50,6 +50,17 @@ pub struct MpcParams {
     /// Below this speed (m/s) the linearisation (which divides by v_x) is not used: Y_p
     /// is the target lane's centre. 2, chosen here.
     pub min_speed: f64,
+    /// While the car keeps its lane, Y_p stays within this of the lane's centre (m), or
+    /// within where it already is, if that is farther: an offset the field asks for (a car
+    /// closing from behind, one drifting beside) is bounded, and a larger one only shrinks.
+    /// 0.3, chosen here: the driver model's overshoot of a steady Y_p stays under 0.2 m,
+    /// so the car keeps within 0.5 m of its lane's centre.
+    #[serde(default = "default_lane_keeping_bound")]
+    pub lane_keeping_bound: f64,
+}
+
+fn default_lane_keeping_bound() -> f64 {
+    MpcParams::default().lane_keeping_bound
 }
 
 impl Default for MpcParams {
@@ -64,6 +75,7 @@ impl Default for MpcParams {
             max_step: 0.15,
             preview_margin: 2.0,
             min_speed: 2.0,
+            lane_keeping_bound: 0.3,
         }
     }
 }

@@ -43,8 +43,23 @@ pub struct SafetyParams {
     pub margin: f64,
     /// A car whose body, moving sideways at its lateral speed, reaches into one of the
     /// AV's lanes within this time (s) counts as in that lane. 1, chosen here: a quarter of
-    /// a lane change, which crosses the line after 2 s.
+    /// a lane change, which crosses the line after 2 s. A car moving sideways towards the
+    /// centre of its own target lane (settling into it) is projected no farther than it.
     pub cut_in_time: f64,
+    /// The hardest braking (m/s^2) a gap may ask of anyone (the AV behind the car ahead,
+    /// the car behind the AV) for the AV to start a lane change into it on the open road
+    /// (`gap_braking`). 2: MOBIL's b_safe, the braking a lane change may impose on the new
+    /// follower (`IdmParams::max_imposed_braking`), so the AV asks no more than the
+    /// traffic does. A change under way is given up when its gap asks more than the games'
+    /// firmest braking (-a_min) and the lane it leaves asks less.
+    pub gap_braking: f64,
+    /// RSS's response time (s) of the car behind the gap the AV starts a lane change into
+    /// on the open road: the AV enters only where that car, holding its command this long
+    /// and then braking at `lead_brake`, stays `margin` behind the AV braking as hard;
+    /// at equal speeds that is this time headway, behind a slower car less. 0.6, chosen
+    /// here: under the IDM cars' 5th-percentile headway in highway-gt traffic (0.64 s), so
+    /// the AV cuts in no closer than the traffic does.
+    pub follower_response: f64,
 }
 
 impl Default for SafetyParams {
@@ -57,6 +72,8 @@ impl Default for SafetyParams {
             emergency_brake: 8.0,
             margin: 1.0,
             cut_in_time: 1.0,
+            gap_braking: 2.0,
+            follower_response: 0.6,
         }
     }
 }
@@ -224,19 +241,91 @@ fn lanes_taken(scene: &Scene, me: &Car, target: LaneId) -> Vec<LaneId> {
 /// Whether `other` is in one of `lanes`, is changing into one, or its body reaches into
 /// one within the cut-in time at its lateral speed.
 fn in_lanes(scene: &Scene, other: &Car, lanes: &[LaneId], params: &SafetyParams) -> bool {
-    if lanes.contains(&other.lane) || lanes.contains(&other.target_lane) {
+    lanes.contains(&other.target_lane) || in_lanes_by_body(scene, other, lanes, params)
+}
+
+/// Whether `other` is in one of `lanes` by position, or its body reaches into one within
+/// the cut-in time at its lateral speed: for the lanes the AV leaves, which it shares
+/// for less than a lane change, a car two lanes over that has only decided to change into
+/// one is not there yet.
+fn in_lanes_by_body(scene: &Scene, other: &Car, lanes: &[LaneId], params: &SafetyParams) -> bool {
+    if lanes.contains(&other.lane) {
         return true;
     }
     let road = &scene.road;
     let state = &other.state;
     let lateral_speed = state.vx * state.heading.sin() + state.vy * state.heading.cos();
-    let later = state.d + lateral_speed * params.cut_in_time;
+    let later = settling(state.d + lateral_speed * params.cut_in_time, state.d, road.lane_center(other.target_lane));
     let half = scene.vehicle.width / 2.0;
     let (low, high) = (state.d.min(later) - half, state.d.max(later) + half);
     let half_lane = road.lane_width() / 2.0;
     lanes.iter().any(|&lane| {
         let centre = road.lane_center(lane);
         low < centre + half_lane && high > centre - half_lane
+    })
+}
+
+/// Where a car at offset `now` moving sideways reaches `later` when it aims at `centre`
+/// (its target lane's): settling into its lane it stops at the centre; moving away from
+/// it (drifting, or a learner's steering) it goes on. Relative to its own lane, not the
+/// AV's: a car finishing a change next to the AV is not cutting in.
+fn settling(later: f64, now: f64, centre: f64) -> f64 {
+    let towards = (centre - now) * (later - now) > 0.0;
+    if towards && (later - now).abs() > (centre - now).abs() { centre } else { later }
+}
+
+/// The braking (m/s^2) a car at `speed`, holding `accel` for the response time, needs to
+/// keep `kept` behind a car `gap` m ahead at `lead_speed` holding its braking `lead_brake`
+/// (>= 0): 0 if it need not brake, infinite if not even the emergency braking does.
+pub(super) fn braking_needed(
+    (speed, accel): (f64, f64),
+    (lead_speed, lead_brake, gap): (f64, f64, f64),
+    params: &SafetyParams,
+) -> f64 {
+    let keeps = |brake: f64| {
+        let rear = Braking { speed, accel, hold: params.response_time, brake };
+        least_gap(rear, lead_speed, lead_brake, gap, f64::INFINITY) >= kept(gap, params)
+    };
+    let brake = |brake: f64| keeps(brake.max(1e-9));
+    if brake(0.0) {
+        return 0.0;
+    }
+    if !brake(params.emergency_brake) {
+        return f64::INFINITY;
+    }
+    super::bisect(0.0, params.emergency_brake, |b| !brake(b)).1
+}
+
+/// The hardest braking (m/s^2) that car `id` being in `lane` now asks of anyone: of `id`,
+/// to keep its distance behind the car ahead there, or of the car behind there, to keep
+/// its distance behind `id` (each from its own speed and command, the car ahead holding
+/// its braking). What a lane change into `lane` costs the traffic (`driver`).
+pub(super) fn gap_braking(scene: &Scene, id: VehicleId, lane: LaneId, params: &SafetyParams) -> f64 {
+    let me = scene.car(id);
+    let length = scene.vehicle.length;
+    let needed = |rear: &Car, front: &Car| {
+        let gap = (front.state.s - rear.state.s - length).max(0.0);
+        let lead = (front.speed().max(0.0), (-front.accel).max(0.0), gap);
+        braking_needed((rear.speed().max(0.0), rear.accel), lead, params)
+    };
+    let ahead = scene.ahead(lane, me.state.s, &[id]).map_or(0.0, |front| needed(me, front));
+    let behind = scene.behind(lane, me.state.s, &[id]).map_or(0.0, |rear| needed(rear, me));
+    ahead.max(behind)
+}
+
+/// Whether the car behind car `id` in `lane`, if any, keeps RSS's distance to it with the
+/// response time `follower_response`, both then braking at `lead_brake`.
+pub(super) fn follower_keeps_distance(scene: &Scene, id: VehicleId, lane: LaneId, params: &SafetyParams) -> bool {
+    let me = scene.car(id);
+    scene.behind(lane, me.state.s, &[id]).is_none_or(|rear| {
+        let gap = me.state.s - rear.state.s - scene.vehicle.length;
+        let braking = Braking {
+            speed: rear.speed().max(0.0),
+            accel: rear.accel,
+            hold: params.follower_response,
+            brake: params.lead_brake,
+        };
+        gap > 0.0 && least_gap(braking, me.speed().max(0.0), params.lead_brake, gap, f64::INFINITY) >= params.margin
     })
 }
 
@@ -275,7 +364,7 @@ pub fn limit(scene: &Scene, id: VehicleId, intent: &Intent, params: &SafetyParam
         }
         let horizon = if in_lanes(scene, other, &[intent.target], params) {
             f64::INFINITY
-        } else if in_lanes(scene, other, &leaving, params) {
+        } else if in_lanes_by_body(scene, other, &leaving, params) {
             until_out
         } else {
             continue;

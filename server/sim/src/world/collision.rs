@@ -1,13 +1,14 @@
 //! Who is at fault in a collision (docs/design.md, "Collision attribution"), by a
 //! responsibility rule in the spirit of RSS (Shalev-Shwartz et al. 2017, "On a Formal
 //! Model of Safe and Scalable Self-driving Cars"): the car that was not keeping a safe
-//! distance when the danger arose. A car whose body reaches into a lane is the lane's
-//! entrant; it answers for the gap it left the car then behind it there while it enters,
-//! if that gap was under RSS's safe longitudinal distance (`safe_gap`) as it entered (it
-//! cut in too close), until the gap is safe or `ESTABLISH_TIME` has passed. Otherwise the
-//! car behind answers for keeping its distance, to a car that entered safely (and that it
-//! then closed on, however it did: accelerating into the gap it had given included) as to
-//! any car in its lane; a car standing still is never at fault.
+//! distance when the danger arose: when the two cars first came to share a lane. A car
+//! whose body reaches into a lane is the lane's entrant; it answers for the gap it left
+//! the car then behind it there, if that gap was under RSS's safe longitudinal distance
+//! (`safe_gap`) as it entered (it cut in too close), until the gap is safe or
+//! `ESTABLISH_TIME` has passed. Otherwise the car behind answers for keeping its
+//! distance, to a car that entered safely (and that it then closed on, however it did:
+//! accelerating into the gap it had given included) as to any car in its lane; a car
+//! standing still is not at fault when struck.
 //!
 //! Attribution reads only what the world keeps of each car: the lanes its body is in,
 //! since when, and, for each, the gap and speeds to the car then behind it there
@@ -212,22 +213,31 @@ pub(super) struct Party {
     pub lanes: Vec<Occupancy>,
 }
 
-/// Who is at fault when `rear` and `front` collide at `time`, by the responsibility rule:
-/// the front car if, in a lane both are in, it entered at or after the rear car did and
-/// cut in too close on it less than `ESTABLISH_TIME` before, without being established
-/// since; the rear car unless the front car did so, or if it entered such a lane at or
-/// after the front car; both if both. A car standing still (`STANDSTILL_SPEED`) is not
-/// at fault when the other moves.
+/// Who is at fault when `rear` and `front` collide at `time`, by the responsibility rule.
+/// The danger arose when they first came to share a lane (of the lanes both are in now,
+/// the one whose later entry of the two is earliest; every such lane if several): the
+/// front car is at fault if it entered there then, too close to the rear car, and is not
+/// yet established (it cut in too close); the rear car if it entered there then, or the
+/// front car did not cut in too close on it; both if both. A car standing still
+/// (`STANDSTILL_SPEED`) is not at fault when the other moves.
 pub(super) fn at_fault(rear: &Party, front: &Party, time: f64) -> AtFault {
-    let (mut rear_entered, mut front_cut_in) = (false, false);
-    for theirs in &front.lanes {
-        let Some(mine) = rear.lanes.iter().find(|o| o.lane == theirs.lane) else { continue };
-        let (r, f) = (mine.since.unwrap_or(f64::NEG_INFINITY), theirs.since.unwrap_or(f64::NEG_INFINITY));
-        rear_entered |= mine.since.is_some() && r >= f;
-        front_cut_in |= theirs.since.is_some() && f >= r && cut_in_on(theirs, rear.id, time);
+    let since = |o: &Occupancy| o.since.unwrap_or(f64::NEG_INFINITY);
+    // Each lane both are in, with the rear car's and the front car's notes of it.
+    let shared = || {
+        front
+            .lanes
+            .iter()
+            .filter_map(|theirs| rear.lanes.iter().find(|o| o.lane == theirs.lane).map(|mine| (mine, theirs)))
+    };
+    let first = shared().map(|(mine, theirs)| since(mine).max(since(theirs))).fold(f64::INFINITY, f64::min);
+    let (mut rear_fault, mut front_fault) = (first == f64::INFINITY, false);
+    for (mine, theirs) in shared().filter(|&(mine, theirs)| since(mine).max(since(theirs)) == first) {
+        let rear_entered = mine.since.is_some() && since(mine) == first;
+        let front_entered = theirs.since.is_some() && since(theirs) == first;
+        let cut_in = front_entered && cut_in_on(theirs, rear.id, time);
+        front_fault |= cut_in;
+        rear_fault |= rear_entered || !cut_in;
     }
-    let mut rear_fault = rear_entered || !front_cut_in;
-    let mut front_fault = front_cut_in;
     let standing = |party: &Party| party.speed.abs() < STANDSTILL_SPEED;
     if standing(rear) && !standing(front) {
         (rear_fault, front_fault) = (false, true);
@@ -428,9 +438,14 @@ mod tests {
     fn both_change_into_each_other() {
         // Lane 0's car moving right, lane 1's moving left, side by side: each body is in
         // the other's lane, each entered it beside the other.
+        // At once: at the same control instant.
         let rear = party(REAR, 25.0, &[started(0), Occupancy { behind: None, ..entered(1, 10.0, -2.0, 25.0, 25.0) }]);
-        let front = party(FRONT, 25.0, &[entered(0, 10.2, -2.0, 25.0, 25.0), started(1)]);
+        let front = party(FRONT, 25.0, &[entered(0, 10.0, -2.0, 25.0, 25.0), started(1)]);
         assert_eq!(at_fault(&rear, &front, 10.5), AtFault::Both);
+        // One first: it created the danger, the other moved sideways into a car already
+        // across its line.
+        let later = party(FRONT, 25.0, &[entered(0, 10.2, -2.0, 25.0, 25.0), started(1)]);
+        assert_eq!(at_fault(&rear, &later, 10.5), AtFault::Rear);
         let left = Approach { target_lane: LaneId(1), d: -1.5, lateral_speed: -1.0, ..cruising(0, 0.0) };
         let right = Approach { target_lane: LaneId(0), d: -2.5, lateral_speed: 1.0, ..cruising(1, -4.0) };
         assert_eq!(entry_rule(&left, &right, 10.5), AtFault::Both);
@@ -442,6 +457,28 @@ mod tests {
         let second = Approach { lane: LaneId(1), entered: Some(9.5), ..cruising(1, -4.0) };
         assert_eq!(entry_rule(&first, &second, 10.0), AtFault::Front);
         assert_eq!(entry_rule(&second, &first, 10.0), AtFault::Rear);
+    }
+
+    #[test]
+    fn two_cars_changing_lanes_one_behind_the_other() {
+        // Both in lane 1, the rear car since 4.2 s behind the front car (in it since 2.4
+        // s), both reach into lane 2 at 6.4 s, the front car 7.5 m ahead: the danger
+        // arose in lane 1, where the rear car did not keep its distance.
+        let lane1 = |since| Occupancy { lane: LaneId(1), since: Some(since), behind: None };
+        let rear = party(REAR, 19.6, &[lane1(4.2), Occupancy { behind: None, ..entered(2, 6.4, 0.0, 19.0, 19.0) }]);
+        let front = party(FRONT, 11.1, &[lane1(2.4), entered(2, 6.4, 7.5, 12.9, 19.3)]);
+        assert_eq!(at_fault(&rear, &front, 7.4), AtFault::Rear);
+        let (behind, ahead) = (Approach { entered: Some(4.3), ..cruising(1, -6.7) }, cruising(1, -6.6));
+        let (behind, ahead) = (
+            Approach { target_lane: LaneId(2), ..behind },
+            Approach { entered: Some(2.4), target_lane: LaneId(2), ..ahead },
+        );
+        assert_eq!(entry_rule(&behind, &ahead, 7.4), AtFault::Rear);
+        // The front car reaching into lane 2 from lane 1, 7.5 m ahead of a car there,
+        // cut in too close; that car swerving into lane 1 after does not change it.
+        let rear = party(REAR, 19.6, &[started(2), Occupancy { behind: None, ..entered(1, 6.6, 0.0, 19.0, 19.0) }]);
+        let front = party(FRONT, 11.1, &[started(1), entered(2, 6.4, 7.5, 12.9, 19.3)]);
+        assert_eq!(at_fault(&rear, &front, 7.4), AtFault::Front);
     }
 
     #[test]

@@ -191,11 +191,17 @@ pub fn safe_gap(rear_speed: f64, rear_accel: f64, front_speed: f64) -> f64 {
 /// The lanes a body at (`s`, `d`) reaching `reach` m to either side of its centre is in,
 /// by lane (a lane that has ended at `s` is none; the first three a body across more).
 pub fn lanes_reached(road: &Road, s: f64, d: f64, reach: f64) -> [Option<LaneId>; 3] {
-    let mut lanes = [None; 3];
-    let half = road.lane_width() / 2.0;
-    let reached = (0..road.lane_count() as u32)
+    let (width, count) = (road.lane_width(), road.lane_count() as f64);
+    let half = width / 2.0;
+    // Lane k's centre is at -k * width: the candidates, one more on either side so that
+    // rounding never drops one, then the exact test. Enough for any reach, at most
+    // 5 + 2 * reach / width of them, never a loop over every lane.
+    let low = ((-d - half - reach) / width).floor().clamp(0.0, count);
+    let high = ((-d + half + reach) / width).ceil().clamp(0.0, count);
+    let reached = (low as u32..high as u32)
         .map(LaneId)
         .filter(|&lane| (d - road.lane_center(lane)).abs() < half + reach && s <= road.lane_end(lane));
+    let mut lanes = [None; 3];
     for (slot, lane) in lanes.iter_mut().zip(reached) {
         *slot = Some(lane);
     }
@@ -368,8 +374,24 @@ mod tests {
         assert_eq!(lanes(-1.0), [Some(LaneId(0)), None, None]);
         assert_eq!(lanes(-1.2), [Some(LaneId(0)), Some(LaneId(1)), None]);
         assert_eq!(lanes(-6.5), [Some(LaneId(1)), Some(LaneId(2)), None]);
-        // Past the road's left edge there is no lane.
+        // Past the road's left edge there is no lane, nor past its right edge.
         assert_eq!(lanes(2.5), [Some(LaneId(0)), None, None]);
+        assert_eq!(lanes(-9.5), [Some(LaneId(2)), None, None]);
+        assert_eq!(lanes(-20.0), [None; 3]);
+        // Lanes narrower than the body: the first three it is across.
+        let narrow = Road::straight(1000.0, 64, 0.5, 30.0);
+        let first = (0..3).map(|k| Some(LaneId(10 + k))).collect::<Vec<_>>();
+        assert_eq!(lanes_reached(&narrow, 100.0, -6.0, 1.0).to_vec(), first);
+        // A lane that has ended is none.
+        let ending = Road::new(
+            crate::road::Pose { x: 0.0, y: 0.0, heading: 0.0 },
+            vec![crate::road::Section::Straight { length: 500.0 }],
+            4.0,
+            vec![30.0, 30.0],
+            &[(LaneId(1), 150.0)],
+        );
+        assert_eq!(lanes_reached(&ending, 100.0, -1.5, 1.0), [Some(LaneId(0)), Some(LaneId(1)), None]);
+        assert_eq!(lanes_reached(&ending, 200.0, -1.5, 1.0), [Some(LaneId(0)), None, None]);
     }
 
     #[test]

@@ -156,8 +156,9 @@ pub const END_REASON: &str = "end_reason";
 /// named vehicles sorted by name, then the traffic cars in the order drawn), -1 while it
 /// has not.
 pub const COLLISION_WITH: &str = "collision_with";
-/// 1 if the agent's vehicle was at fault for that collision (it struck a car in its lane,
-/// or changed lanes into occupied space; docs/design.md, "Collision attribution"), else 0.
+/// 1 if the agent's vehicle was at fault for that collision (it cut in too close ahead of
+/// the other car, or did not keep its distance to a car in its lane; docs/design.md,
+/// "Collision attribution"), else 0.
 pub const AT_FAULT: &str = "at_fault";
 /// Whether this is the agent's last step: then the `episode_*` figures are its episode's.
 pub const EPISODE_DONE: &str = "episode_done";

@@ -1,7 +1,8 @@
 //! The collision benchmark of issue 24: highway-gt.toml with an IDM car in the learner's
 //! place, 40 s per seed over seeds 0..99 (or SEEDS from FIRST), every collision printed
-//! with who is at fault as the world attributes it (docs/design.md, "Collision
-//! attribution"), then the totals (docs/design.md, "Safety layer"):
+//! with who is at fault as the world attributes it, under the responsibility rule and the
+//! lane-entry rule before it (docs/design.md, "Collision attribution"), then the totals
+//! (docs/design.md, "Safety layer"):
 //!
 //! `cargo run --release -p arena-sim --example highway_gt_safety [-- SEEDS [FIRST] [--no-safety] | -- --trace SEED CAR [FROM TO]]`
 //!
@@ -102,7 +103,7 @@ fn main() {
         (first + seeds).saturating_sub(1),
         if safety { "on" } else { "off" }
     );
-    let (mut total, mut gt_fault, mut gt_involved) = (0, 0, 0);
+    let (mut total, mut gt_fault, mut gt_fault_entry, mut gt_involved) = (0, 0, 0, 0);
     let (mut plans, mut overrides, mut emergencies) = (0, 0, 0);
     let mut failing = Vec::new();
     for seed in first..first + seeds {
@@ -114,7 +115,8 @@ fn main() {
         let crashes = run.crashes;
         for c in &crashes {
             println!(
-                "seed {seed:3} t={:5.2} {} ({}, {:.1} m/s) into {} ({}, {:.1} m/s): {:?} at fault{}",
+                "seed {seed:3} t={:5.2} {} ({}, {:.1} m/s) into {} ({}, {:.1} m/s): {:?} at fault{} \
+                 (lane-entry rule: {:?}{})",
                 c.time,
                 c.names[0],
                 c.drivers[0],
@@ -123,19 +125,22 @@ fn main() {
                 c.drivers[1],
                 c.speeds[1],
                 c.fault(),
-                if c.gt_at_fault() { " [gt]" } else { "" }
+                if c.gt_at_fault() { " [gt]" } else { "" },
+                c.collision.entry_rule,
+                if c.gt_at_fault_by_entry_rule() { " [gt]" } else { "" }
             );
         }
         total += crashes.len();
         gt_fault += crashes.iter().filter(|c| c.gt_at_fault()).count();
+        gt_fault_entry += crashes.iter().filter(|c| c.gt_at_fault_by_entry_rule()).count();
         gt_involved += crashes.iter().filter(|c| c.involves_gt()).count();
         if crashes.iter().any(|c| c.gt_at_fault()) {
             failing.push(seed);
         }
     }
     println!(
-        "collisions {total}, with a gt car at fault {gt_fault}, involving a gt car {gt_involved}; \
-         seeds with a gt car at fault: {failing:?}"
+        "collisions {total}, with a gt car at fault {gt_fault} (lane-entry rule: {gt_fault_entry}), involving a gt \
+         car {gt_involved}; seeds with a gt car at fault: {failing:?}"
     );
     let share = |n: u64| 100.0 * n as f64 / plans.max(1) as f64;
     println!(

@@ -39,9 +39,9 @@ pub use scenario::{
 pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 pub use traffic::{IdmParams, speed_control};
 pub use world::{
-    AgentCommand, AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver, Ending, LEARNER_SPEED_FACTOR, LaneEntry,
-    RngState, StateError, Stepper, Vehicle, VehicleSetup, World, WorldParams, WorldState, beside_decisions,
-    rng_position,
+    AgentCommand, AtFault, BLAME_BRAKE, BLAME_RESPONSE_TIME, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver,
+    ESTABLISH_TIME, Ending, EntryGap, LEARNER_SPEED_FACTOR, LaneEntry, Occupancy, RngState, STANDSTILL_SPEED,
+    StateError, Stepper, Vehicle, VehicleSetup, World, WorldParams, WorldState, beside_decisions, rng_position,
 };
 
 /// The model and the AV's planner taken apart, for the examples and benches that reproduce

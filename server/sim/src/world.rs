@@ -25,8 +25,11 @@ mod pool;
 mod state;
 mod stepper;
 use crate::traffic::{self, IdmDecision, IdmParams};
-use collision::Approach;
-pub use collision::{AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, LaneEntry};
+use collision::{Approach, Party, safe_gap};
+pub use collision::{
+    AtFault, BLAME_BRAKE, BLAME_RESPONSE_TIME, CUT_IN_WINDOW, Collision, DRIFT_SPEED, ESTABLISH_TIME, EntryGap,
+    LaneEntry, Occupancy, STANDSTILL_SPEED,
+};
 pub use pool::beside_decisions;
 pub use state::{RngState, StateError, WorldState, rng_position};
 pub use stepper::Stepper;
@@ -137,8 +140,13 @@ pub struct Vehicle {
     pub status: Status,
     /// Simulated time of the last MOBIL consultation (s).
     pub last_lane_decision: f64,
-    /// The lane it was in at the last control instant, and since when (`collision`).
+    /// The lane it was in at the last control instant, and since when (`collision`, the
+    /// lane-entry rule).
     pub lane_entry: LaneEntry,
+    /// The lanes its body was in at the last control instant, by lane, each with since
+    /// when and the gap to the car then behind it there (`collision`, the responsibility
+    /// rule).
+    pub occupancy: Vec<Occupancy>,
 }
 
 impl Vehicle {
@@ -157,6 +165,7 @@ impl Vehicle {
             status: Status::Driving,
             last_lane_decision: f64::NEG_INFINITY,
             lane_entry: LaneEntry { lane, at: None },
+            occupancy: vec![Occupancy { lane, since: None, behind: None }],
         }
     }
 
@@ -605,7 +614,10 @@ impl World {
         vehicle.ramp_from = ramp_from;
     }
 
-    /// Notes which vehicles entered another lane since the last control instant.
+    /// Notes which vehicles entered another lane since the last control instant: the lane
+    /// nearest each one's centre (the lane-entry rule), and the lanes its body is in (the
+    /// responsibility rule). Each vehicle's notes are made from the positions and speeds
+    /// of this instant alone, never from another's notes, so their order does not matter.
     fn note_lane_entries(&mut self) {
         let time = self.state.time;
         for (vehicle, car) in self.state.vehicles.iter_mut().zip(self.scene.cars()) {
@@ -613,9 +625,17 @@ impl World {
                 vehicle.lane_entry = LaneEntry { lane: car.lane, at: Some(time) };
             }
         }
+        for index in 0..self.state.vehicles.len() {
+            if !self.state.vehicles[index].on_road() {
+                continue;
+            }
+            if let Some(occupancy) = self.occupancy_now(index) {
+                self.state.vehicles[index].occupancy = occupancy;
+            }
+        }
     }
 
-    /// Vehicle `v` as collision attribution reads it now.
+    /// Vehicle `v` as the lane-entry rule reads it now.
     fn approach(&self, v: &Vehicle) -> Approach {
         let (state, road) = (&v.state, self.road());
         // As the scene reads the lane (`Scene::refresh`), so that entries compare.
@@ -623,6 +643,93 @@ impl World {
         let entered = if lane == v.lane_entry.lane { v.lane_entry.at } else { Some(self.state.time) };
         let lateral_speed = state.vx * state.heading.sin() + state.vy * state.heading.cos();
         Approach { lane, entered, target_lane: v.target_lane, d: state.d, lateral_speed }
+    }
+
+    /// Vehicle `index` as the responsibility rule reads it now.
+    fn party(&self, index: usize) -> Party {
+        let vehicle = &self.state.vehicles[index];
+        let lanes = self.occupancy_now(index).unwrap_or_else(|| vehicle.occupancy.clone());
+        Party { id: VehicleId(index as u32), speed: vehicle.state.vx, lanes }
+    }
+
+    /// The lanes a vehicle's body is in now: within half its width, and half its length
+    /// turned by its heading, of its centre.
+    fn lanes_of(&self, vehicle: &Vehicle) -> [Option<LaneId>; 3] {
+        let (body, state) = (self.vehicle_params(), &vehicle.state);
+        let reach = body.width / 2.0 + body.length / 2.0 * state.heading.sin().abs();
+        collision::lanes_reached(self.road(), state.s, state.d, reach)
+    }
+
+    /// Vehicle `index`'s lanes now, each with since when and the gap to the car behind it
+    /// there as it came in, if they differ from its notes: a lane it was not in at the
+    /// last control instant is entered now, and a gap it left too close is re-measured
+    /// (its car behind may have fallen back, or left the lane). `None`: as noted.
+    fn occupancy_now(&self, index: usize) -> Option<Vec<Occupancy>> {
+        let (vehicle, time) = (&self.state.vehicles[index], self.state.time);
+        let lanes = self.lanes_of(vehicle);
+        let noted = |lane: LaneId| vehicle.occupancy.iter().find(|o| o.lane == lane);
+        let unsettled = |o: &Occupancy| {
+            o.behind.is_some_and(|gap| gap.established.is_none())
+                && o.since.is_some_and(|since| time - since < ESTABLISH_TIME)
+        };
+        let same = lanes.iter().flatten().count() == vehicle.occupancy.len()
+            && lanes.iter().flatten().all(|&lane| noted(lane).is_some());
+        if same && !vehicle.occupancy.iter().any(unsettled) {
+            return None;
+        }
+        let now = lanes.iter().flatten().map(|&lane| match noted(lane) {
+            Some(o) if unsettled(o) => Occupancy { behind: o.behind.map(|gap| self.settle(index, lane, gap)), ..*o },
+            Some(o) => *o,
+            None => self.enter(index, lane),
+        });
+        Some(now.collect())
+    }
+
+    /// Vehicle `index` entering `lane` now: the car nearest behind it there, and the gap.
+    fn enter(&self, index: usize, lane: LaneId) -> Occupancy {
+        let (vehicles, time) = (&self.state.vehicles, self.state.time);
+        let me = &vehicles[index];
+        let behind = (0..vehicles.len())
+            .filter(|&j| self.behind_in(j, index, lane))
+            .max_by(|&a, &b| vehicles[a].state.s.total_cmp(&vehicles[b].state.s).then(a.cmp(&b)))
+            .map(|j| {
+                let rear = &vehicles[j];
+                let mut gap = EntryGap {
+                    rear: VehicleId(j as u32),
+                    gap: me.state.s - rear.state.s - self.vehicle_params().length,
+                    speed: me.state.vx,
+                    rear_speed: rear.state.vx,
+                    rear_accel: rear.longitudinal_accel,
+                    established: None,
+                };
+                gap.established = (!gap.too_close()).then_some(time);
+                gap
+            });
+        Occupancy { lane, since: Some(time), behind }
+    }
+
+    /// `gap`, left by vehicle `index` as it entered `lane`, re-measured now: established
+    /// if the gap to its car behind is safe, or that car is no longer behind it there.
+    fn settle(&self, index: usize, lane: LaneId, gap: EntryGap) -> EntryGap {
+        let (vehicles, time) = (&self.state.vehicles, self.state.time);
+        let (me, j) = (&vehicles[index], gap.rear.0 as usize);
+        let safe = match vehicles.get(j) {
+            Some(rear) if self.behind_in(j, index, lane) => {
+                let now = me.state.s - rear.state.s - self.vehicle_params().length;
+                now >= safe_gap(rear.state.vx, rear.longitudinal_accel, me.state.vx)
+            }
+            _ => true,
+        };
+        EntryGap { established: safe.then_some(time), ..gap }
+    }
+
+    /// Whether vehicle `j` is on the road behind vehicle `index` (by s, ties by id) with
+    /// its body in `lane`.
+    fn behind_in(&self, j: usize, index: usize, lane: LaneId) -> bool {
+        let vehicles = &self.state.vehicles;
+        let (rear, me) = (&vehicles[j], &vehicles[index]);
+        let behind = rear.state.s < me.state.s || (rear.state.s == me.state.s && j < index);
+        j != index && rear.on_road() && behind && self.lanes_of(rear).contains(&Some(lane))
     }
 
     fn boxes_overlap(&self, a: &Vehicle, b: &Vehicle) -> bool {

@@ -162,9 +162,22 @@ impl World {
                 _ => Err("another driver".to_string()),
             };
             same_driver.map_err(|e| invalid(format!("{}: {e}", at())))?;
-            let lanes_used = [Some(theirs.target_lane), Some(theirs.lane_entry.lane)];
-            if !lanes_used.into_iter().flatten().all(lane_ok) {
+            let lanes_used = [theirs.target_lane, theirs.lane_entry.lane].into_iter();
+            if !lanes_used.chain(theirs.occupancy.iter().map(|o| o.lane)).all(lane_ok) {
                 return Err(invalid(format!("{}: a lane the road (lanes 0..{lanes}) does not have", at())));
+            }
+            // A body is in three lanes at most (`collision::lanes_reached`), each once.
+            let occupancy = &theirs.occupancy;
+            let repeated = occupancy.iter().enumerate().any(|(k, o)| occupancy[..k].iter().any(|p| p.lane == o.lane));
+            if occupancy.len() > 3 || repeated {
+                return Err(invalid(format!("{}: {} lanes occupied, or one twice", at(), occupancy.len())));
+            }
+            if let Some(gap) = occupancy.iter().filter_map(|o| o.behind).find(|g| g.rear.0 as usize >= n) {
+                return Err(invalid(format!(
+                    "{}: entered a lane ahead of vehicle {}: there are {n}",
+                    at(),
+                    gap.rear.0
+                )));
             }
             if !vehicle_numbers(theirs).all(within_state) {
                 return Err(invalid(format!(
@@ -196,7 +209,7 @@ impl World {
 }
 
 /// Every number a vehicle carries from one tick to the next: its state, what it is
-/// commanded, its lateral path and its driver's memory. A number that is not finite
+/// commanded, its lateral path, its driver's memory and its lane entries. A number that is not finite
 /// from outside would reach the dynamics and the MPC.
 fn vehicle_numbers(vehicle: &Vehicle) -> impl Iterator<Item = f64> + '_ {
     let path = &vehicle.path;
@@ -218,7 +231,19 @@ fn vehicle_numbers(vehicle: &Vehicle) -> impl Iterator<Item = f64> + '_ {
         Driver::Agent(AgentCommand::Track) | Driver::Idm | Driver::Gt(_) => Vec::new(),
     };
     let lane_entry = vehicle.lane_entry.at;
-    vehicle.state.to_array().into_iter().chain(own).chain(vehicle.ramp_from).chain(lane_entry).chain(driver)
+    let occupancy = vehicle.occupancy.iter().flat_map(|o| {
+        let gap = o.behind.map(|g| [g.gap, g.speed, g.rear_speed, g.rear_accel]).into_iter().flatten();
+        o.since.into_iter().chain(gap).chain(o.behind.and_then(|g| g.established))
+    });
+    vehicle
+        .state
+        .to_array()
+        .into_iter()
+        .chain(own)
+        .chain(vehicle.ramp_from)
+        .chain(lane_entry)
+        .chain(driver)
+        .chain(occupancy)
 }
 
 #[cfg(test)]
@@ -274,6 +299,19 @@ mod tests {
         gt.expect("merge-random has a gt car")
     }
 
+    /// In lane 0 since 1 s, `gap` m ahead of vehicle `rear`.
+    fn entered_behind(rear: u32, gap: f64) -> crate::Occupancy {
+        let behind = crate::EntryGap {
+            rear: crate::VehicleId(rear),
+            gap,
+            speed: 20.0,
+            rear_speed: 20.0,
+            rear_accel: 0.0,
+            established: None,
+        };
+        crate::Occupancy { lane: LaneId(0), since: Some(1.0), behind: Some(behind) }
+    }
+
     #[test]
     fn a_state_that_does_not_fit_is_refused_and_the_world_left_as_it_was() {
         let world = advanced("merge-random", 1.0);
@@ -316,10 +354,24 @@ mod tests {
                         rear: crate::VehicleId(0),
                         front: crate::VehicleId(77),
                         at_fault: crate::AtFault::Rear,
+                        entry_rule: crate::AtFault::Rear,
                     })
                 }),
             ),
             ("time", Box::new(|s| s.time += 1.0)),
+            ("a lane the road", Box::new(|s| s.vehicles[1].occupancy[0].lane = LaneId(9))),
+            ("or one twice", Box::new(|s| s.vehicles[1].occupancy = vec![s.vehicles[1].occupancy[0]; 2])),
+            ("or one twice", Box::new(|s| s.vehicles[1].occupancy = vec![entered_behind(0, 1.0); 4])),
+            ("ahead of vehicle 77", Box::new(|s| s.vehicles[1].occupancy = vec![entered_behind(77, 1.0)])),
+            ("vehicle 1 ('", Box::new(|s| s.vehicles[1].occupancy = vec![entered_behind(0, f64::NAN)])),
+            (
+                "not finite",
+                Box::new(|s| {
+                    let mut entry = entered_behind(0, 1.0);
+                    entry.since = Some(f64::INFINITY);
+                    s.vehicles[1].occupancy = vec![entry];
+                }),
+            ),
         ];
         for (needle, spoil) in cases {
             let mut bad = good.clone();

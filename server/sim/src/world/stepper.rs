@@ -393,8 +393,9 @@ impl Stepper {
                     && (b.state.d - a.state.d).abs() <= lateral_reach
                     && world.boxes_overlap(a, b)
                 {
-                    let at_fault = collision::at_fault(&world.approach(a), &world.approach(b), state.time);
-                    found.push(super::Collision { rear: VehicleId(i), front: VehicleId(j), at_fault });
+                    let at_fault = collision::at_fault(&world.party(i as usize), &world.party(j as usize), state.time);
+                    let entry_rule = collision::entry_rule(&world.approach(a), &world.approach(b), state.time);
+                    found.push(super::Collision { rear: VehicleId(i), front: VehicleId(j), at_fault, entry_rule });
                 }
             }
         }

@@ -35,8 +35,18 @@ impl Crash {
 
     /// Whether a game-theoretic car is at fault.
     pub fn gt_at_fault(&self) -> bool {
+        self.gt_under(self.fault())
+    }
+
+    /// Whether a game-theoretic car is at fault under the lane-entry rule
+    /// (`Collision::entry_rule`, the rule before issue 43).
+    pub fn gt_at_fault_by_entry_rule(&self) -> bool {
+        self.gt_under(self.collision.entry_rule)
+    }
+
+    fn gt_under(&self, fault: AtFault) -> bool {
         let [rear, front] = self.gt();
-        match self.fault() {
+        match fault {
             AtFault::Rear => rear,
             AtFault::Front => front,
             AtFault::Both => rear || front,

@@ -79,5 +79,7 @@ pub use world::{
 /// world in reset and step replies, `world`; 8: `CreateOptions::explain`,
 /// `StepReply::explain`; 9: `Render::follow`, `RequestBody::Statistics`; 10:
 /// `CreateOptions::render_window`, and a snapshot holds the env's and the world's state as
-/// they are, without the scene drivers read).
-pub const PROTOCOL_VERSION: u16 = 10;
+/// they are, without the scene drivers read; 11: a snapshot's vehicles carry the lanes their
+/// bodies are in and the gap behind each as they entered it, and its collisions the
+/// lane-entry rule's verdict beside `at_fault`'s).
+pub const PROTOCOL_VERSION: u16 = 11;

@@ -39,8 +39,8 @@ pub use scenario::{
 pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 pub use traffic::{IdmParams, speed_control};
 pub use world::{
-    AgentCommand, AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver, Ending, LEARNER_SPEED_FACTOR, LaneEntry,
-    RngState, StateError, Stepper, Vehicle, VehicleSetup, World, WorldParams, WorldState, beside_decisions,
+    AgentCommand, AtFault, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver, Ending, Forced, LEARNER_SPEED_FACTOR,
+    LaneEntry, RngState, StateError, Stepper, Vehicle, VehicleSetup, World, WorldParams, WorldState, beside_decisions,
     rng_position,
 };
 

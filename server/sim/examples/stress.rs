@@ -39,9 +39,8 @@ fn parse(args: &[String]) -> Result<Options, String> {
     let mut args = args.iter();
     while let Some(flag) = args.next() {
         let mut value = || args.next().ok_or_else(|| format!("{flag} needs a value\n{USAGE}"));
-        let number = |text: &str| {
-            text.parse::<u64>().map_err(|_| format!("invalid {flag} '{text}': expected a whole number 0 or more"))
-        };
+        let number =
+            |text: &str| text.parse::<u64>().map_err(|_| format!("invalid {flag} '{text}': expected a whole number"));
         match flag.as_str() {
             "--seeds" => options.seeds = number(value()?)?,
             "--first" => options.first = number(value()?)?,

@@ -617,7 +617,7 @@ pub struct Adversary {
 enum Phase {
     /// Getting into position on a gt car (`mark`), following traffic.
     Seek,
-    /// Changing into `gt`'s lane ahead of it.
+    /// Changing into a gt car's lane ahead of it, since `since` (s).
     CutIn { since: f64 },
     /// Braking after a cut-in.
     Brake { until: f64 },

@@ -40,7 +40,7 @@ pub use scene::{Car, DriverKind, Lead, Role, Scene, Status, VehicleId};
 pub use traffic::{IdmParams, speed_control};
 pub use world::{
     AgentCommand, AtFault, BLAME_BRAKE, BLAME_RESPONSE_TIME, CUT_IN_WINDOW, Collision, DRIFT_SPEED, Driver,
-    ESTABLISH_TIME, Ending, EntryGap, LEARNER_SPEED_FACTOR, LaneEntry, Occupancy, RngState, STANDSTILL_SPEED,
+    ESTABLISH_TIME, Ending, EntryGap, Forced, LEARNER_SPEED_FACTOR, LaneEntry, Occupancy, RngState, STANDSTILL_SPEED,
     StateError, Stepper, Vehicle, VehicleSetup, World, WorldParams, WorldState, beside_decisions, rng_position,
 };
 

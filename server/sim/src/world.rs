@@ -49,6 +49,25 @@ pub enum Ending {
     RoadEnd,
 }
 
+/// What a `gt` car is made to do in place of part of its own step: an evaluation hook
+/// (`World::force`), for asking what would have happened had the AV acted otherwise (the
+/// stress suite replays a collision with the car at fault forced to abort its lane change,
+/// and again forced to brake). Its driver still decides every period as it would, from
+/// the same scene and memory; the world applies the forced part in place of the
+/// decision's. Never set by a scenario, an env or a client.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Forced {
+    /// Steer back to (or stay in) this lane: the decision's lane changes and steering are
+    /// replaced by a path from where the car is to the lane's centre, at a lane change's
+    /// pace (`LANE_CHANGE_DURATION` per lane width, at least half of it), which the car
+    /// previews as IDM cars do. Its acceleration stays its own.
+    ReturnToLane(LaneId),
+    /// Brake at this acceleration (m/s^2, negative) until stopped, from the start of each
+    /// period: the decision's acceleration is replaced. Its lane changes and steering stay
+    /// its own.
+    Brake(f64),
+}
+
 /// Timing of the simulation.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct WorldParams {
@@ -225,6 +244,10 @@ pub struct World {
     /// Each `gt` car's game, role and constants, by id (`None` for every other vehicle):
     /// fixed once it is added, as `steps` are.
     gt_setups: Vec<Option<GtSetup>>,
+    /// What each `gt` car is forced to do, by id (`force`; empty until a car is): an
+    /// evaluation hook beside the state, not in it, so a snapshot does not carry it and
+    /// `restore` keeps it.
+    forced: Vec<Option<Forced>>,
     state: WorldState,
 }
 
@@ -242,6 +265,7 @@ impl World {
             steps: Vec::new(),
             setups: Vec::new(),
             gt_setups: Vec::new(),
+            forced: Vec::new(),
             state: WorldState::new(seed),
         }
     }
@@ -413,6 +437,28 @@ impl World {
         let setup = self.gt_setups[id.0 as usize].as_mut().expect("set_gt_params of a gt car");
         setup.params = params;
         self.scene_taken = None;
+    }
+
+    /// Forces `gt` car `id` to do `forced` in place of part of its own step from the next
+    /// control instant on, until `release`d (an evaluation hook, see `Forced`); it is not
+    /// part of the world's state.
+    pub fn force(&mut self, id: VehicleId, forced: Forced) {
+        assert!(self.gt_setup(id).is_some(), "force a gt car, not '{}'", self.name(id));
+        let n = self.state.vehicles.len();
+        self.forced.resize(n, None);
+        self.forced[id.0 as usize] = Some(forced);
+    }
+
+    /// Lets vehicle `id`'s driver decide all of its step again.
+    pub fn release(&mut self, id: VehicleId) {
+        if let Some(forced) = self.forced.get_mut(id.0 as usize) {
+            *forced = None;
+        }
+    }
+
+    /// What vehicle `id` is forced to do, if anything (`force`).
+    pub fn forced(&self, id: VehicleId) -> Option<Forced> {
+        self.forced.get(id.0 as usize).copied().flatten()
     }
 
     /// The setup of vehicle `index`'s driver, the game-theoretic AV.
@@ -599,19 +645,51 @@ impl World {
             }
             Decision::Gt(step) => {
                 let GtStep { command, change_to, ramp, memory } = *step;
-                if let Some(lane) = change_to {
-                    self.change_lane(id, lane);
+                let forced = self.forced(id);
+                match forced {
+                    Some(Forced::ReturnToLane(lane)) => self.return_to_lane(id, lane),
+                    _ => {
+                        if let Some(lane) = change_to {
+                            self.change_lane(id, lane);
+                        }
+                    }
                 }
-                ramp_from = ramp.then_some(previous);
+                let accel = match forced {
+                    Some(Forced::Brake(accel)) => self.braking(id, accel),
+                    _ => {
+                        ramp_from = ramp.then_some(previous);
+                        command.accel
+                    }
+                };
                 let vehicle = self.vehicle_mut(id);
                 vehicle.command.preview = command.preview;
                 vehicle.driver = Driver::Gt(Box::new(memory));
-                command.accel
+                accel
             }
         };
         let vehicle = &mut self.state.vehicles[id.0 as usize];
         vehicle.command.accel = accel;
         vehicle.ramp_from = ramp_from;
+    }
+
+    /// `Forced::ReturnToLane`: makes `lane` vehicle `id`'s target lane, along a path from
+    /// where it is to the lane's centre at a lane change's pace, unless it is on one.
+    fn return_to_lane(&mut self, id: VehicleId, lane: LaneId) {
+        let (time, to, width) = (self.state.time, self.road().lane_center(lane), self.road().lane_width());
+        let vehicle = self.vehicle_mut(id);
+        if vehicle.target_lane == lane && vehicle.path.to == to {
+            return;
+        }
+        let from = vehicle.state.d;
+        let duration = dynamics::LANE_CHANGE_DURATION * ((to - from).abs() / width).clamp(0.5, 1.0);
+        vehicle.target_lane = lane;
+        vehicle.path = LateralPath { from, to, start: time, duration };
+    }
+
+    /// `Forced::Brake`: `accel`, held so that vehicle `id` stops rather than reverses
+    /// within the coming control period.
+    fn braking(&self, id: VehicleId, accel: f64) -> f64 {
+        accel.max(-self.vehicle(id).state.vx.max(0.0) / self.params.control_dt)
     }
 
     /// Notes which vehicles entered another lane since the last control instant: the lane

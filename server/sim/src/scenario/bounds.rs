@@ -93,7 +93,7 @@ impl Scenario {
     /// Game-theoretic cars: vehicles driven by `gt` and `[traffic] gt.count`.
     pub fn gt_cars(&self) -> usize {
         let named = self.vehicles.iter().filter(|v| matches!(v.driver, DriverSpec::Gt { .. })).count();
-        named + self.traffic.as_ref().and_then(|t| t.gt).map_or(0, |gt| gt.count as usize)
+        named + self.traffic.as_ref().and_then(|t| t.gt.as_ref()).map_or(0, |gt| gt.count as usize)
     }
 
     /// Game-theoretic decisions in one env step: `gt_cars` x `control_periods_per_step`,

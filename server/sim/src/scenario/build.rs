@@ -45,28 +45,31 @@ fn is_gt_car(k: u32, count: u32, gt: u32) -> bool {
     share(u64::from(k) + 1) > share(u64::from(k))
 }
 
-/// highway-env's `create_random`: each car goes ahead of the frontmost one by
-/// `(12 + v) * exp(-5/40 * lanes) / density * U(0.9, 1.1)`, in a random lane.
+/// highway-env's `create_random`: each car goes ahead of the frontmost one (named
+/// vehicles included, or the traffic's `start`) by `TrafficSpec::spacing` x U(0.9, 1.1),
+/// in a random lane.
 fn place_traffic(world: &mut World, traffic: &TrafficSpec) {
-    let lanes_factor = (-5.0 / 40.0 * world.road().lane_count() as f64).exp();
+    let lanes = world.road().lane_count();
+    let named_front =
+        world.vehicles().iter().map(|v| v.state.s).fold(None, |m: Option<f64>, s| Some(m.map_or(s, |m| m.max(s))));
+    let mut front = traffic.start.or(named_front);
+    let mut gt_placed = 0;
     for k in 0..traffic.count {
         let speed = world.rng().random_range(traffic.speed[0]..=traffic.speed[1]);
         let lane = traffic.lanes[world.rng().random_range(0..traffic.lanes.len())];
-        let offset = (12.0 + speed) * lanes_factor / traffic.density;
-        let front =
-            world.vehicles().iter().map(|v| v.state.s).fold(None, |m: Option<f64>, s| Some(m.map_or(s, |m| m.max(s))));
+        let offset = traffic.spacing(speed, lanes);
         let s = front.unwrap_or(3.0 * offset) + offset * world.rng().random_range(0.9..1.1);
+        front = Some(s);
         let name = format!("car{k}");
-        match traffic.gt {
+        let vehicle = Vehicle::new(world.road(), lane, s, speed, Driver::Idm);
+        match &traffic.gt {
             Some(gt) if is_gt_car(k, traffic.count, gt.count) => {
-                let vehicle = Vehicle::new(world.road(), lane, s, speed, Driver::Idm);
-                let setup = GtSetup { game: gt.game, role: gt.role, params: GtParams::default() };
-                world.add_gt(VehicleSetup::new(&name, gt.style), vehicle, setup)
+                let (style, game) = gt.driver(gt_placed);
+                gt_placed += 1;
+                let setup = GtSetup { game, role: gt.role, params: GtParams::default() };
+                world.add_gt(VehicleSetup::new(&name, style), vehicle, setup)
             }
-            _ => {
-                let vehicle = Vehicle::new(world.road(), lane, s, speed, Driver::Idm);
-                world.add(VehicleSetup::new(&name, traffic.style), vehicle)
-            }
+            _ => world.add(VehicleSetup::new(&name, traffic.style), vehicle),
         };
     }
 }

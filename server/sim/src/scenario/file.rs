@@ -2,7 +2,8 @@
 //! table, with its defaults and unknown keys refused, and nothing checked beyond what
 //! serde checks (ripgrep's LowArgs; `validate` turns them into the checked `Scenario`).
 
-use serde::Deserialize;
+use serde::de::{DeserializeOwned, Error as _};
+use serde::{Deserialize, Deserializer};
 
 use super::{ActionKind, RewardSpec};
 use crate::dynamics::Style;
@@ -168,6 +169,8 @@ pub(super) struct TrafficFile {
     pub(super) lanes: Option<Vec<i64>>,
     #[serde(default = "default_style")]
     pub(super) style: Style,
+    /// Where the traffic starts (m along the road); absent: ahead of the named vehicles.
+    pub(super) start: Option<f64>,
     pub(super) gt: Option<GtTrafficFile>,
 }
 
@@ -175,11 +178,31 @@ pub(super) struct TrafficFile {
 #[serde(deny_unknown_fields)]
 pub(super) struct GtTrafficFile {
     pub(super) count: u32,
-    pub(super) game: Game,
-    #[serde(default = "default_style")]
-    pub(super) style: Style,
+    /// One game, or a list the cars take in turn with the styles.
+    pub(super) game: OneOrMany<Game>,
+    #[serde(default = "default_styles")]
+    pub(super) style: OneOrMany<Style>,
     #[serde(default)]
     pub(super) role: Role,
+}
+
+/// A value written alone (`style = "normal"`) or as a list (`style = ["normal", ...]`).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct OneOrMany<T>(pub(super) Vec<T>);
+
+impl<'de, T: DeserializeOwned> Deserialize<'de> for OneOrMany<T> {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        match toml::Value::deserialize(deserializer)? {
+            toml::Value::Array(items) => items.into_iter().map(T::deserialize).collect::<Result<_, _>>(),
+            one => T::deserialize(one).map(|value| vec![value]),
+        }
+        .map(OneOrMany)
+        .map_err(D::Error::custom)
+    }
+}
+
+fn default_styles() -> OneOrMany<Style> {
+    OneOrMany(vec![Style::Normal])
 }
 
 fn default_density() -> f64 {

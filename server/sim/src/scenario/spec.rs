@@ -77,22 +77,61 @@ pub struct TrafficSpec {
     pub lanes: Vec<LaneId>,
     /// Style of their steering.
     pub style: Style,
+    /// Where the traffic starts (m along the road): the first car goes one spacing ahead
+    /// of it, and the named vehicles stay out of the stretch it fills in its lanes
+    /// (`validate`). `None`: ahead of the frontmost named vehicle, as highway-env places
+    /// traffic ahead of the ego car.
+    pub start: Option<f64>,
     /// How many of them the game-theoretic AV drives, spread evenly through the traffic
     /// (every `count / gt.count`-th car), and how.
     pub gt: Option<GtTraffic>,
 }
 
+impl TrafficSpec {
+    /// highway-env's spacing along the road between one car and the next one placed ahead
+    /// of it (centre to centre, in any lane), before its U(0.9, 1.1) factor: `(12 + speed)
+    /// x exp(-5/40 x lanes) / density` for a car at `speed` (m/s) on a road of `lanes`
+    /// lanes (m).
+    pub fn spacing(&self, speed: f64, lanes: usize) -> f64 {
+        (12.0 + speed) * (-5.0 / 40.0 * lanes as f64).exp() / self.density
+    }
+
+    /// The most road the traffic can fill from where it starts (m): `count` spacings at
+    /// the top speed, each at its U(0.9, 1.1) factor's top.
+    pub fn reach(&self, lanes: usize) -> f64 {
+        f64::from(self.count) * self.spacing(self.speed[1], lanes) * 1.1
+    }
+
+    /// The traffic's density as placed, in vehicles per km per lane of `self.lanes`: one
+    /// car per mean spacing (the speed range's middle), spread over its lanes.
+    pub fn vehicles_per_km_per_lane(&self, lanes: usize) -> f64 {
+        let mean = self.spacing((self.speed[0] + self.speed[1]) / 2.0, lanes);
+        1000.0 / (mean * self.lanes.len() as f64)
+    }
+}
+
 /// The game-theoretic cars among random traffic.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GtTraffic {
     /// How many.
     pub count: u32,
-    /// Nash or Stackelberg.
-    pub game: Game,
-    /// Their style.
-    pub style: Style,
+    /// Their games: one, or several the cars take in turn (`driver`).
+    pub games: Vec<Game>,
+    /// Their styles: one, or several the cars take in turn (`driver`).
+    pub styles: Vec<Style>,
     /// Leader or follower.
     pub role: Role,
+}
+
+impl GtTraffic {
+    /// The style and game of the `k`-th game-theoretic car of the traffic (from 0, in the
+    /// order they are placed): every (style, game) pair in turn, styles outer and games
+    /// inner, so 6 cars of three styles and two games drive all six pairs once.
+    pub fn driver(&self, k: u32) -> (Style, Game) {
+        let (styles, games) = (self.styles.len().max(1), self.games.len().max(1));
+        let pair = k as usize % (styles * games);
+        (self.styles[pair / games], self.games[pair % games])
+    }
 }
 
 /// How the env turns the paper's cost J into a reward (docs/rewards.md).

@@ -448,7 +448,7 @@ fn idm_opponents_replace_gt_vehicles_and_gt_traffic() {
     assert!(matches!(merge.vehicles[1].driver, DriverSpec::Idm));
     let highway = builtin_with("highway-gt", &[("opponents.style", "conservative")]).unwrap();
     let gt = highway.traffic.as_ref().and_then(|t| t.gt.as_ref()).expect("highway-gt has gt traffic");
-    assert_eq!((gt.style, gt.game, gt.count), (Style::Conservative, Game::Stackelberg, 8));
+    assert_eq!((&gt.styles[..], &gt.games[..], gt.count), (&[Style::Conservative][..], &[Game::Stackelberg][..], 8));
     let idm = builtin_with("highway-gt", &[("opponents.driver", "idm")]).unwrap();
     assert!(idm.traffic.as_ref().is_some_and(|t| t.gt.is_none()));
 }
@@ -464,6 +464,90 @@ fn opponents_that_cannot_be_set_are_refused_by_name() {
     assert!(what.contains("opponents.style, opponents.game or opponents.driver"), "{what}");
     let style = refused("merge", "opponents.style", "reckless");
     assert!(style.contains("reckless"), "{style}");
+}
+
+/// `GOOD`'s road made 2 km long with `traffic` as its `[traffic]` table.
+fn with_traffic(traffic: &str) -> String {
+    with("sections = [{ length = 500.0 }]", "sections = [{ length = 2000.0 }]") + "[traffic]\n" + traffic
+}
+
+#[test]
+fn gt_traffic_of_several_styles_and_games_drives_every_pair_in_turn() {
+    let text = with_traffic(
+        "count = 12\nspeed = [20.0, 22.0]\n\
+         gt = { count = 7, game = [\"nash\", \"stackelberg\"], style = [\"aggressive\", \"normal\", \"conservative\"] }",
+    );
+    let scenario = parse(&text).unwrap();
+    let gt = scenario.traffic.as_ref().and_then(|t| t.gt.clone()).unwrap();
+    let pairs: Vec<_> = (0..7).map(|k| gt.driver(k)).collect();
+    use {Game::*, Style::*};
+    let expected = [
+        (Aggressive, Nash),
+        (Aggressive, Stackelberg),
+        (Normal, Nash),
+        (Normal, Stackelberg),
+        (Conservative, Nash),
+        (Conservative, Stackelberg),
+        (Aggressive, Nash),
+    ];
+    assert_eq!(pairs, expected);
+    // The world's gt cars, in the order they were placed, drive those pairs.
+    let world = scenario.build(3);
+    let placed: Vec<_> = (0..world.vehicles().len() as u32)
+        .map(crate::VehicleId)
+        .filter_map(|id| world.gt_setup(id).map(|setup| (world.style(id), setup.game)))
+        .collect();
+    assert_eq!(placed, expected);
+    // One of each, as before: every gt car alike.
+    let one = parse(&with_traffic("count = 4\nspeed = [20.0, 22.0]\ngt = { count = 2, game = \"nash\" }")).unwrap();
+    let gt = one.traffic.unwrap().gt.unwrap();
+    assert_eq!((gt.driver(0), gt.driver(1)), ((Normal, Nash), (Normal, Nash)));
+}
+
+#[test]
+fn bad_lists_of_gt_styles_and_games_are_refused_with_the_key() {
+    let refused = |gt: &str| error(&with_traffic(&format!("count = 4\nspeed = [20.0, 22.0]\ngt = {gt}")));
+    let empty = refused("{ count = 2, game = \"nash\", style = [] }");
+    assert!(empty.contains("traffic.gt.style") && empty.contains("at least one"), "{empty}");
+    let empty = refused("{ count = 2, game = [] }");
+    assert!(empty.contains("traffic.gt.game") && empty.contains("at least one"), "{empty}");
+    let unknown = refused("{ count = 2, game = \"nash\", style = [\"normal\", \"reckless\"] }");
+    assert!(unknown.contains("reckless") && unknown.contains("conservative"), "{unknown}");
+    let unknown = refused("{ count = 2, game = [\"nash\", 3] }");
+    assert!(unknown.contains("game"), "{unknown}");
+}
+
+#[test]
+fn traffic_with_a_start_fills_the_road_from_there_and_keeps_clear_of_named_vehicles() {
+    // Vehicle a is in lane 0 at s = 10 and b in lane 1 at 30; traffic in lane 0 only.
+    let traffic = |start: &str| format!("count = 20\nspeed = [20.0, 22.0]\nlanes = [0]\nstart = {start}\n");
+    let scenario = parse(&with_traffic(&traffic("100.0"))).unwrap();
+    let spec = scenario.traffic.clone().unwrap();
+    let world = scenario.build(5);
+    let placed: Vec<f64> = world.vehicles()[2..].iter().map(|v| v.state.s).collect();
+    let lanes = scenario.road.lane_count();
+    let (first, last) = (placed[0], placed[placed.len() - 1]);
+    assert!(first > 100.0 + 0.9 * spec.spacing(20.0, lanes) - 1e-9 && first < 100.0 + 1.1 * spec.spacing(22.0, lanes));
+    assert!(placed.windows(2).all(|w| w[1] > w[0]) && last <= 100.0 + spec.reach(lanes), "{placed:?}");
+    // Without a start it goes ahead of the frontmost named vehicle (b, at 30).
+    let ahead = parse(&with_traffic("count = 20\nspeed = [20.0, 22.0]\nlanes = [0]\n")).unwrap().build(5);
+    assert!(ahead.vehicles()[2].state.s > 30.0 && ahead.vehicles()[2].state.s < 100.0);
+    // A named vehicle in the traffic's lanes within its stretch is refused by name.
+    let inside = error(&with_traffic(&traffic("0.0")));
+    assert!(inside.contains("traffic.start") && inside.contains("'a'") && inside.contains("lane 0"), "{inside}");
+    for start in ["-5.0", "2000.0", "nan"] {
+        let off = error(&with_traffic(&traffic(start)));
+        assert!(off.contains("traffic.start") && off.contains("position on the road"), "{start}: {off}");
+    }
+}
+
+#[test]
+fn the_density_of_traffic_is_counted_per_km_and_lane() {
+    // highway.toml: 4 lanes, density 1, 21-24 m/s: one car per 34.5 x exp(-0.5) = 20.9 m
+    // of road, over 4 lanes: 12.0 vehicles per km per lane.
+    let highway = builtin_scenario("highway").unwrap().unwrap();
+    let per_km = highway.traffic.unwrap().vehicles_per_km_per_lane(4);
+    assert!((per_km - 1000.0 / (34.5 * (-0.5f64).exp() * 4.0)).abs() < 1e-9 && (per_km - 11.95).abs() < 0.01);
 }
 
 // Bounds: what one scenario may cost (`bounds`), on the file and after overrides and draws.

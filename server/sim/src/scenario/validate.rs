@@ -5,7 +5,9 @@
 use std::collections::{HashMap, HashSet};
 
 use super::bounds::{MAX_ROAD_EXTENT, MAX_SPEED};
-use super::file::{DriverFile, GoalFile, OriginFile, RewardFile, RoadFile, ScenarioFile, TrafficFile, VehicleFile};
+use super::file::{
+    DriverFile, GoalFile, GtTrafficFile, OriginFile, RewardFile, RoadFile, ScenarioFile, TrafficFile, VehicleFile,
+};
 use super::vary::validate_vary;
 use super::{DriverSpec, Goal, GtTraffic, RewardSpec, Scenario, ScenarioErrorKind, TrafficSpec, VehicleSpec};
 use crate::dynamics::VehicleParams;
@@ -43,7 +45,7 @@ impl ScenarioFile {
         let road = self.road.validate()?;
         let vehicles = self.vehicles.iter().map(|v| v.validate(&road)).collect::<Result<Vec<_>, _>>()?;
         check_names_and_overlaps(&vehicles, &road)?;
-        let traffic = self.traffic.map(|t| t.validate(&road)).transpose()?;
+        let traffic = self.traffic.map(|t| t.validate(&road, &vehicles)).transpose()?;
         let goal = self.goal.validate(&road, &vehicles)?;
         let reward = self.reward.validate(sim.max_cycles, &goal)?;
         let vary = validate_vary(&self.vary)?;
@@ -376,7 +378,7 @@ pub(super) fn first_overlap(poses: &[(f64, f64, f64)], body: &VehicleParams) -> 
 }
 
 impl TrafficFile {
-    fn validate(self, road: &Road) -> Result<TrafficSpec, ScenarioErrorKind> {
+    fn validate(self, road: &Road, vehicles: &[VehicleSpec]) -> Result<TrafficSpec, ScenarioErrorKind> {
         let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
         if !(self.density.is_finite() && self.density > 0.0) {
             return Err(invalid("traffic.density", format!("must be positive, not {}", self.density)));
@@ -398,20 +400,71 @@ impl TrafficFile {
                 format!("lane {lane} does not exist (lanes 0..={})", road.lane_count() - 1),
             ));
         }
-        let gt = self.gt.map(|gt| GtTraffic { count: gt.count, game: gt.game, style: gt.style, role: gt.role });
-        if let Some(gt) = gt.filter(|gt| gt.count > self.count) {
+        if let Some(start) = self.start.filter(|s| !(s.is_finite() && (0.0..road.length()).contains(s))) {
             return Err(invalid(
-                "traffic.gt.count",
-                format!("{} is more than the {} cars of traffic", gt.count, self.count),
+                "traffic.start",
+                format!("must be a position on the road, 0 <= start < {} m, not {start}", road.length()),
             ));
         }
-        Ok(TrafficSpec {
+        let gt = match self.gt {
+            Some(gt) => Some(gt.validate(self.count)?),
+            None => None,
+        };
+        let traffic = TrafficSpec {
             gt,
             count: self.count,
             density: self.density,
             speed: self.speed,
             lanes: lanes.into_iter().map(|l| LaneId(l as u32)).collect(),
             style: self.style,
-        })
+            start: self.start,
+        };
+        traffic.check_stretch(road, vehicles)?;
+        Ok(traffic)
+    }
+}
+
+impl GtTrafficFile {
+    fn validate(self, traffic: u32) -> Result<GtTraffic, ScenarioErrorKind> {
+        let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
+        if self.count > traffic {
+            return Err(invalid(
+                "traffic.gt.count",
+                format!("{} is more than the {traffic} cars of traffic", self.count),
+            ));
+        }
+        if self.style.0.is_empty() {
+            return Err(invalid("traffic.gt.style", "must name a style, or a list of at least one".into()));
+        }
+        if self.game.0.is_empty() {
+            return Err(invalid("traffic.gt.game", "must name a game, or a list of at least one".into()));
+        }
+        Ok(GtTraffic { count: self.count, games: self.game.0, styles: self.style.0, role: self.role })
+    }
+}
+
+impl TrafficSpec {
+    /// Traffic with a `start` is placed without looking at the named vehicles: none may be
+    /// in its lanes within a body length of the stretch it can fill (`reach`).
+    fn check_stretch(&self, road: &Road, vehicles: &[VehicleSpec]) -> Result<(), ScenarioErrorKind> {
+        let Some(start) = self.start else { return Ok(()) };
+        let length = VehicleParams::default().length;
+        let end = start + self.reach(road.lane_count());
+        let inside = |v: &&VehicleSpec| self.lanes.contains(&v.lane) && start - length < v.s && v.s < end + length;
+        match vehicles.iter().find(inside) {
+            Some(vehicle) => Err(ScenarioErrorKind::Invalid {
+                key: "traffic.start".to_string(),
+                message: format!(
+                    "vehicle '{}' is in lane {} at s = {} m, inside the stretch the traffic may fill in lanes {:?} \
+                     (s {start:.0}..{end:.0} m, a body length either side); place it outside that stretch or in a \
+                     lane traffic.lanes leaves out",
+                    vehicle.name,
+                    vehicle.lane.0,
+                    vehicle.s,
+                    self.lanes.iter().map(|l| l.0).collect::<Vec<_>>()
+                ),
+            }),
+            None => Ok(()),
+        }
     }
 }

@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use super::clock::{self, DecisionClock};
 use super::pool::{self, Helpers};
-use super::{AgentCommand, Decision, Driver, Status, VehicleId, World, collision};
+use super::{AgentCommand, Decision, Driver, Forced, Status, VehicleId, World, collision};
 use crate::dynamics;
 use crate::gt;
 
@@ -329,7 +329,7 @@ impl Stepper {
     /// Integrates every vehicle on the road over one physics step, all of them together
     /// (`dynamics::Fleet`).
     fn integrate(&mut self, world: &mut World) {
-        let World { scene, params, steps, setups, state, .. } = world;
+        let World { scene, params, steps, setups, state, forced, .. } = world;
         let time = state.time;
         // Which step of its control period this is: a ramped acceleration is a linear
         // blend reaching the command at the period's last step.
@@ -344,9 +344,12 @@ impl Stepper {
             if !vehicle.on_road() || stopped_wreck {
                 continue;
             }
+            // A gt car previews its plan's point, unless it is made to return to a lane
+            // (`Forced::ReturnToLane`): then its path's, as every other driver.
+            let returning = matches!(forced.get(index), Some(Some(Forced::ReturnToLane(_))));
             vehicle.command.preview = match vehicle.driver {
                 Driver::Agent(AgentCommand::Direct(command)) => command.preview,
-                Driver::Gt(_) => vehicle.command.preview,
+                Driver::Gt(_) if !returning => vehicle.command.preview,
                 _ => vehicle.path.preview(time, setups[index].driver_params.preview_time),
             };
             let mut command = vehicle.command;

@@ -432,3 +432,69 @@ fn decisions_made_ahead_are_the_ones_their_tick_makes_and_dropped_when_a_vehicle
     });
     assert_eq!(dropped, reference, "decisions made ahead outlived a change they depend on");
 }
+
+/// A `gt` car alone in the middle of three lanes, at 25 m/s, and the world it drives in.
+fn lone_gt_car() -> (World, VehicleId) {
+    let road = Road::straight(3000.0, 3, 4.0, 30.0);
+    let mut world = World::new(road.clone(), WorldParams::default(), 0);
+    let vehicle = Vehicle::new(&road, LaneId(1), 50.0, 25.0, Driver::Idm);
+    let setup = GtSetup { game: Game::Nash, role: Role::Leader, params: GtParams::default() };
+    let id = world.add_gt(VehicleSetup::new("gt", Style::Normal), vehicle, setup);
+    (world, id)
+}
+
+#[test]
+fn a_gt_car_forced_to_return_to_a_lane_goes_there_and_stays_until_released() {
+    let (mut world, id) = lone_gt_car();
+    let mut stepper = Stepper::new();
+    stepper.advance(&mut world, 2.0);
+    assert_eq!((world.current_lane(id), world.forced(id)), (LaneId(1), None));
+    // Alone on the road it keeps its lane; forced, it goes to lane 0 at its own speed.
+    world.force(id, Forced::ReturnToLane(LaneId(0)));
+    let speed = world.vehicle(id).state.vx;
+    stepper.advance(&mut world, 6.0);
+    let vehicle = world.vehicle(id);
+    assert_eq!((world.current_lane(id), vehicle.target_lane), (LaneId(0), LaneId(0)));
+    assert!(vehicle.state.d.abs() < 0.2, "settled at the centre of lane 0: d = {}", vehicle.state.d);
+    assert!((vehicle.state.vx - speed).abs() < 2.0, "its speed is its own: {} then {}", speed, vehicle.state.vx);
+    assert_eq!(world.vehicle(id).status, Status::Driving);
+    // Not part of the state: a restored state keeps the world's hook, and a copy has it.
+    world.restore(world.state().clone()).unwrap();
+    assert_eq!(world.clone().forced(id), Some(Forced::ReturnToLane(LaneId(0))));
+    world.release(id);
+    assert_eq!(world.forced(id), None);
+    stepper.advance(&mut world, 1.0);
+    assert_eq!(world.vehicle(id).status, Status::Driving);
+}
+
+#[test]
+fn a_gt_car_forced_to_brake_brakes_at_that_rate_to_a_stop_and_no_further() {
+    let (mut world, id) = lone_gt_car();
+    let mut stepper = Stepper::new();
+    stepper.advance(&mut world, 1.0);
+    world.force(id, Forced::Brake(-6.0));
+    let before = world.vehicle(id).state.vx;
+    stepper.advance(&mut world, 2.0);
+    let after = world.vehicle(id).state.vx;
+    // -6 m/s^2 for 2 s, applied through the driver model's longitudinal response.
+    assert!((before - after - 12.0).abs() < 1.5, "{before} -> {after} m/s in 2 s");
+    assert_eq!(world.vehicle(id).command.accel, -6.0);
+    stepper.advance(&mut world, 6.0);
+    let stopped = world.vehicle(id).state.vx;
+    assert!((-0.05..0.5).contains(&stopped), "stopped, not reversing: {stopped} m/s");
+    assert_eq!(world.current_lane(id), LaneId(1), "its steering is its own");
+    // Released, it drives off again.
+    world.release(id);
+    stepper.advance(&mut world, 3.0);
+    assert!(world.vehicle(id).state.vx > stopped + 3.0, "{}", world.vehicle(id).state.vx);
+}
+
+#[test]
+#[should_panic(expected = "force a gt car")]
+fn only_a_gt_car_can_be_forced() {
+    let (mut world, _) = lone_gt_car();
+    let road = world.road().clone();
+    let idm =
+        world.add(VehicleSetup::new("idm", Style::Normal), Vehicle::new(&road, LaneId(0), 10.0, 20.0, Driver::Idm));
+    world.force(idm, Forced::Brake(-6.0));
+}

@@ -1,7 +1,8 @@
 //! highway-gt.toml with an IDM car in the learner's place, and who is at fault in each
 //! of its collisions as the world attributes them (`Collision::at_fault`, docs/design.md
 //! "Collision attribution"): shared by `examples/highway_gt_safety.rs` (the benchmark) and
-//! `tests/highway_gt_safety.rs` (a subset of its seeds).
+//! `tests/highway_gt_safety.rs` (a subset of its seeds), and by the stress suite
+//! (`support/stress.rs`), which builds its episodes' worlds as `world` does.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -61,7 +62,11 @@ impl Crash {
 
 /// highway-gt.toml with its learner's car (ego_0) driven by IDM + MOBIL.
 pub fn scenario() -> Scenario {
-    let mut scenario = builtin_scenario("highway-gt").expect("highway-gt is built in").expect("it validates");
+    idm_learners(builtin_scenario("highway-gt").expect("highway-gt is built in").expect("it validates"))
+}
+
+/// `scenario` with IDM + MOBIL driving every learner's car.
+pub fn idm_learners(mut scenario: Scenario) -> Scenario {
     for vehicle in &mut scenario.vehicles {
         if matches!(vehicle.driver, DriverSpec::Agent(_)) {
             vehicle.driver = DriverSpec::Idm;
@@ -83,7 +88,8 @@ fn driver_name(driver: &Driver) -> &'static str {
 pub fn world(scenario: &Scenario, seed: u64) -> World {
     let world_seed = ChaCha8Rng::seed_from_u64(seed).next_u64();
     let mut draws = ChaCha8Rng::seed_from_u64(world_seed);
-    scenario.episode(&mut draws, &[]).expect("highway-gt draws valid episodes").build(world_seed)
+    let episode = scenario.episode(&mut draws, &[]);
+    episode.unwrap_or_else(|e| panic!("{} draws valid episodes: {e}", scenario.name)).build(world_seed)
 }
 
 /// What a run of episode `seed` gave.

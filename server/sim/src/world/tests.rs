@@ -111,6 +111,44 @@ fn idm_stops_before_a_lane_end_when_it_cannot_merge() {
     assert!(m.state.s < 150.0 && m.state.vx < 0.5, "s {} v {}", m.state.s, m.state.vx);
 }
 
+/// A straight 600 m road of `lanes` lanes whose last lane ends at `end`.
+fn on_ramp(lanes: usize, end: f64) -> Road {
+    let origin = crate::road::Pose { x: 0.0, y: 0.0, heading: 0.0 };
+    let sections = vec![crate::road::Section::Straight { length: 600.0 }];
+    Road::new(origin, sections, 4.0, vec![30.0; lanes], &[(LaneId(lanes as u32 - 1), end)])
+}
+
+/// Adds a car on `lane` at `s`, `speed`, aiming for `target_speed`, driven by `driver`.
+fn add_car(world: &mut World, name: &str, (lane, s): (u32, f64), (speed, target_speed): (f64, f64), driver: Driver) {
+    let mut vehicle = Vehicle::new(world.road(), LaneId(lane), s, speed, driver);
+    vehicle.target_speed = target_speed;
+    world.add(VehicleSetup::new(name, Style::Normal), vehicle);
+}
+
+#[test]
+fn mobil_does_not_move_a_through_car_into_a_lane_that_ends() {
+    // A through car at 25 m/s closes on a car at 12 m/s; the lane beside it, free, ends
+    // 300 m ahead: 12 s of driving, far beyond the old two-second horizon, and still a
+    // lane the car would have to leave again.
+    let mut world = World::new(on_ramp(2, 400.0), WorldParams::default(), 0);
+    let track = Driver::Agent(AgentCommand::Track);
+    add_car(&mut world, "slow", (0, 140.0), (12.0, 12.0), track);
+    add_car(&mut world, "through", (0, 100.0), (25.0, 25.0), Driver::Idm);
+    let through = world.find("through").unwrap();
+    let mut stepper = Stepper::new();
+    for _ in 0..1000 {
+        stepper.tick(&mut world);
+        assert_eq!(world.vehicle(through).target_lane, LaneId(0), "t = {:.2}", world.time());
+    }
+    assert!(world.collisions().is_empty(), "{:?}", world.collisions());
+    // The ramp's own car still leaves it for the through lane, which ends no earlier.
+    let mut world = World::new(on_ramp(2, 400.0), WorldParams::default(), 0);
+    add_car(&mut world, "merging", (1, 100.0), (20.0, 25.0), Driver::Idm);
+    world.advance(10.0);
+    let merging = world.vehicle(world.find("merging").unwrap());
+    assert_eq!((merging.target_lane, merging.status), (LaneId(0), Status::Driving));
+}
+
 #[test]
 fn oriented_boxes() {
     let half = (2.5, 1.0);

@@ -150,6 +150,31 @@ fn mobil_does_not_move_a_through_car_into_a_lane_that_ends() {
 }
 
 #[test]
+fn two_cars_changing_into_one_lane_from_both_sides_do_not_meet_there() {
+    // Abreast in lanes 0 and 2, each behind a slow car, both find lane 1 free at the same
+    // MOBIL instant. The one behind (abreast: the smaller id) gives way.
+    for (left_s, right_s) in [(100.0, 100.0), (100.0, 104.0), (104.0, 100.0)] {
+        let mut world = World::new(Road::straight(1000.0, 3, 4.0, 30.0), WorldParams::default(), 0);
+        let track = Driver::Agent(AgentCommand::Track);
+        add_car(&mut world, "a_slow", (0, left_s + 35.0), (12.0, 12.0), track.clone());
+        add_car(&mut world, "b_slow", (2, right_s + 35.0), (12.0, 12.0), track);
+        add_car(&mut world, "left", (0, left_s), (22.0, 25.0), Driver::Idm);
+        add_car(&mut world, "right", (2, right_s), (22.0, 25.0), Driver::Idm);
+        let ids = [world.find("left").unwrap(), world.find("right").unwrap()];
+        let mut stepper = Stepper::new();
+        let mut into_middle = [false; 2];
+        for _ in 0..1500 {
+            stepper.tick(&mut world);
+            for (k, &id) in ids.iter().enumerate() {
+                into_middle[k] |= world.vehicle(id).target_lane == LaneId(1);
+            }
+        }
+        assert_eq!(into_middle, [true, true], "both set out for the middle lane ({left_s}, {right_s})");
+        assert!(world.collisions().is_empty(), "({left_s}, {right_s}): {:?}", world.collisions());
+    }
+}
+
+#[test]
 fn oriented_boxes() {
     let half = (2.5, 1.0);
     assert!(oriented_boxes_overlap((0.0, 0.0, 0.0), (4.9, 0.0, 0.0), half));

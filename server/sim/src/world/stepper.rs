@@ -347,7 +347,10 @@ impl Stepper {
             vehicle.command.preview = match vehicle.driver {
                 Driver::Agent(AgentCommand::Direct(command)) => command.preview,
                 Driver::Gt(_) => vehicle.command.preview,
-                _ => vehicle.path.preview(time, setups[index].driver_params.preview_time),
+                _ => {
+                    vehicle.path.pace(time, params.physics_dt, vehicle.state.lane_speed());
+                    vehicle.path.preview(time, setups[index].driver_params.preview_time)
+                }
             };
             let mut command = vehicle.command;
             if let Some(from) = vehicle.ramp_from.filter(|_| phase < per_control) {

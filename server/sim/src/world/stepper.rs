@@ -16,6 +16,15 @@ use super::{AgentCommand, Decision, Driver, Status, VehicleId, World, collision}
 use crate::dynamics;
 use crate::gt;
 
+/// `preview` held within the road's edges where a car at `s`, reaching `half_width` to
+/// either side, is (`Road::paved_band`): a driver that steers towards it keeps the car on
+/// lanes that have not ended, beside a lane's end as along the road's outer edges,
+/// whatever its plan or path asks for.
+fn paved(road: &crate::road::Road, half_width: f64, s: f64, preview: f64) -> f64 {
+    let (low, high) = road.paved_band(s, half_width);
+    preview.max(low).min(high)
+}
+
 /// Advances worlds: scratch, threads, a clock and decisions made ahead, never state.
 #[derive(Debug, Clone)]
 pub struct Stepper {
@@ -336,6 +345,7 @@ impl Stepper {
         let per_control = params.substeps_per_control();
         let phase = state.ticks % per_control + 1;
         let road = &scene.road;
+        let half_width = scene.vehicle.width / 2.0;
         let (fleet, moving) = (&mut self.fleet, &mut self.moving);
         fleet.clear();
         moving.clear();
@@ -345,11 +355,14 @@ impl Stepper {
                 continue;
             }
             vehicle.command.preview = match vehicle.driver {
+                // A learner's continuous action steers where it says, off the road too:
+                // the world then ends it there (`Status::OffRoad`), as its env expects.
                 Driver::Agent(AgentCommand::Direct(command)) => command.preview,
-                Driver::Gt(_) => vehicle.command.preview,
+                Driver::Gt(_) => paved(road, half_width, vehicle.state.s, vehicle.command.preview),
                 _ => {
                     vehicle.path.pace(time, params.physics_dt, vehicle.state.lane_speed());
-                    vehicle.path.preview(time, setups[index].driver_params.preview_time)
+                    let preview = vehicle.path.preview(time, setups[index].driver_params.preview_time);
+                    paved(road, half_width, vehicle.state.s, preview)
                 }
             };
             let mut command = vehicle.command;

@@ -150,6 +150,34 @@ fn mobil_does_not_move_a_through_car_into_a_lane_that_ends() {
 }
 
 #[test]
+fn the_road_edge_past_a_lane_end_holds_a_car_told_to_drive_onto_it() {
+    // Past the end of lane 1, a car in lane 0 is told to change into it: an IDM car and a
+    // learner's meta action alike steer for the ended lane's centre. The edge holds both;
+    // only a learner's continuous action may leave the road.
+    for driver in [Driver::Idm, Driver::Agent(AgentCommand::Track)] {
+        let mut world = World::new(on_ramp(2, 200.0), WorldParams::default(), 0);
+        add_car(&mut world, "car", (0, 250.0), (20.0, 20.0), driver.clone());
+        let car = world.find("car").unwrap();
+        world.change_lane(car, LaneId(1));
+        let mut stepper = Stepper::new();
+        for _ in 0..800 {
+            stepper.tick(&mut world);
+            let v = world.vehicle(car);
+            assert_eq!(v.status, Status::Driving, "{driver:?} t = {:.2}: d = {}", world.time(), v.state.d);
+            // The preview stops where the body would touch the edge, d = -1; the driver
+            // overshoots it by no more than a lane change may.
+            let overshoot = crate::dynamics::LANE_CHANGE_BOUNDS.max_overshoot;
+            assert!(v.state.d > -1.0 - overshoot, "{driver:?} t = {:.2}: d = {}", world.time(), v.state.d);
+        }
+    }
+    let direct = Driver::Agent(AgentCommand::Direct(Command { accel: 0.0, preview: -4.0 }));
+    let mut world = World::new(on_ramp(2, 200.0), WorldParams::default(), 0);
+    add_car(&mut world, "learner", (0, 250.0), (20.0, 20.0), direct);
+    world.advance(8.0);
+    assert_eq!(world.ending(world.find("learner").unwrap()), Some(Ending::LaneEnd));
+}
+
+#[test]
 fn two_cars_changing_into_one_lane_from_both_sides_do_not_meet_there() {
     // Abreast in lanes 0 and 2, each behind a slow car, both find lane 1 free at the same
     // MOBIL instant. The one behind (abreast: the smaller id) gives way.

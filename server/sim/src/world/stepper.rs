@@ -16,13 +16,28 @@ use super::{AgentCommand, Decision, Driver, Status, VehicleId, World, collision}
 use crate::dynamics;
 use crate::gt;
 
-/// `preview` held within the road's edges where a car at `s`, reaching `half_width` to
-/// either side, is (`Road::paved_band`): a driver that steers towards it keeps the car on
-/// lanes that have not ended, beside a lane's end as along the road's outer edges,
-/// whatever its plan or path asks for.
-fn paved(road: &crate::road::Road, half_width: f64, s: f64, preview: f64) -> f64 {
-    let (low, high) = road.paved_band(s, half_width);
-    preview.max(low).min(high)
+/// How far sideways a preview point may lie from the car, per metre of road the driver
+/// previews (v T_p): 0.4, chosen here: the slope a lane change's path asks for at
+/// `FULL_PACE_SPEED` (its 1.9 m/s peak over 5 m/s), so that no path IDM or a learner's
+/// meta action previews reaches it.
+pub const PREVIEW_SLOPE: f64 = 0.4;
+
+/// `preview` held where a driver steering towards it keeps the car, at `state` and
+/// reaching `half_width` to either side, on the road: within `PREVIEW_SLOPE` of its
+/// preview distance of it (at a standstill, straight ahead: a driver aiming a lane away
+/// there holds the wheels at their lock and the car, creeping off, turns across the
+/// lanes), then within the road's edges where it is (`Road::paved_band`), beside a lane's
+/// end as along the road's outer edges, whatever its plan or path asks for.
+fn held(
+    road: &crate::road::Road,
+    half_width: f64,
+    state: &dynamics::VehicleState,
+    preview_time: f64,
+    preview: f64,
+) -> f64 {
+    let reach = PREVIEW_SLOPE * state.lane_speed().max(0.0) * preview_time;
+    let (low, high) = road.paved_band(state.s, half_width);
+    preview.max(state.d - reach).min(state.d + reach).max(low).min(high)
 }
 
 /// Advances worlds: scratch, threads, a clock and decisions made ahead, never state.
@@ -354,15 +369,16 @@ impl Stepper {
             if !vehicle.on_road() || stopped_wreck {
                 continue;
             }
+            let preview_time = setups[index].driver_params.preview_time;
             vehicle.command.preview = match vehicle.driver {
                 // A learner's continuous action steers where it says, off the road too:
                 // the world then ends it there (`Status::OffRoad`), as its env expects.
                 Driver::Agent(AgentCommand::Direct(command)) => command.preview,
-                Driver::Gt(_) => paved(road, half_width, vehicle.state.s, vehicle.command.preview),
+                Driver::Gt(_) => held(road, half_width, &vehicle.state, preview_time, vehicle.command.preview),
                 _ => {
                     vehicle.path.pace(time, params.physics_dt, vehicle.state.lane_speed());
-                    let preview = vehicle.path.preview(time, setups[index].driver_params.preview_time);
-                    paved(road, half_width, vehicle.state.s, preview)
+                    let preview = vehicle.path.preview(time, preview_time);
+                    held(road, half_width, &vehicle.state, preview_time, preview)
                 }
             };
             let mut command = vehicle.command;

@@ -178,6 +178,33 @@ fn the_road_edge_past_a_lane_end_holds_a_car_told_to_drive_onto_it() {
 }
 
 #[test]
+fn a_car_leaving_a_lane_end_from_a_standstill_does_not_turn_across_the_road() {
+    // A game-theoretic car waits at the end of its lane, the lane beside it free. Below
+    // its MPC's 2 m/s it aims at the target lane's centre outright, and the driver held the
+    // wheels at their lock as it crept off (in traffic, across both lanes and off the far
+    // edge). Now its preview lies no further sideways than its speed lets it reach.
+    for style in Style::ALL {
+        let mut world = World::new(on_ramp(2, 200.0), WorldParams::default(), 0);
+        let mut vehicle = Vehicle::new(world.road(), LaneId(1), 190.0, 0.0, Driver::Idm);
+        vehicle.target_speed = 20.0;
+        let gt =
+            crate::gt::GtSetup { game: crate::gt::Game::Stackelberg, role: Role::Leader, params: Default::default() };
+        let car = world.add_gt(VehicleSetup::new("waiting", style), vehicle, gt);
+        let mut stepper = Stepper::new();
+        let mut turned: f64 = 0.0;
+        for _ in 0..1500 {
+            stepper.tick(&mut world);
+            turned = turned.max(world.vehicle(car).state.heading.abs());
+        }
+        let v = world.vehicle(car);
+        assert_eq!(world.ending(car), None, "{style:?}: {:?}", v.state);
+        // 0.33 rad at most when measured; 0.54-0.61 with the preview unbounded.
+        assert!(turned < 0.45, "{style:?}: turned {turned} rad");
+        assert!(v.state.d > -2.0 && v.state.d < 1.0, "{style:?} merged and kept its lane: {:?}", v.state);
+    }
+}
+
+#[test]
 fn two_cars_changing_into_one_lane_from_both_sides_do_not_meet_there() {
     // Abreast in lanes 0 and 2, each behind a slow car, both find lane 1 free at the same
     // MOBIL instant. The one behind (abreast: the smaller id) gives way.

@@ -5,7 +5,10 @@
 //! through car moves into the ramp lane, no car drives past a lane's end or off the road,
 //! no two cars collide. A ramp car that finds no gap stops before the end and waits.
 
-use arena_sim::{Driver, Ending, LaneId, Scenario, Status, Stepper, Style, Vehicle, VehicleId, VehicleSetup, World};
+use arena_sim::{
+    Driver, Ending, Game, GtParams, GtSetup, LaneId, Role, Scenario, Status, Stepper, Style, Vehicle, VehicleId,
+    VehicleSetup, World,
+};
 
 /// The road and its through traffic; `{density}` is filled in.
 const ON_RAMP: &str = r#"
@@ -140,4 +143,35 @@ fn a_ramp_car_that_finds_no_gap_stops_before_the_lane_end() {
             }
         }
     }
+}
+
+/// The road's edges hold game-theoretic cars too: 6 of 16 through cars aggressive Nash
+/// players, an aggressive Stackelberg leader merging from the ramp, 30 s. Measured before
+/// the preview was held on the road and within reach: 2 cars over the left edge in these
+/// 100 episodes (seeds 104 and 134), 1 with the road's band alone (159). Where such a car
+/// runs past the ramp's end (its merge, or the ramp lane its own lane-end rule let it
+/// enter) is the game-theoretic driver's, not asserted here: 4 cars in seeds 0..200.
+#[test]
+fn game_theoretic_traffic_on_an_on_ramp_stays_within_the_roads_edges() {
+    let text = ON_RAMP.replace("{density}", "1.0").replace("count = 24", "count = 16")
+        + "gt = { count = 6, game = \"nash\", style = \"aggressive\" }\n";
+    let scenario = Scenario::parse("on-ramp-gt.toml", &text, &[]).expect("the on-ramp scenario validates");
+    let mut over_the_edge = Vec::new();
+    for seed in 100..200 {
+        let mut world = scenario.build(seed);
+        let mut vehicle = Vehicle::new(world.road(), RAMP, 250.0, 18.0, Driver::Idm);
+        vehicle.target_speed = 24.0;
+        let setup = GtSetup { game: Game::Stackelberg, role: Role::Leader, params: GtParams::default() };
+        world.add_gt(VehicleSetup::new("merging", Style::Aggressive), vehicle, setup);
+        let mut stepper = Stepper::new();
+        stepper.set_decision_threads(1);
+        stepper.advance(&mut world, 30.0);
+        for k in 0..world.vehicles().len() {
+            let id = VehicleId(k as u32);
+            if world.ending(id) == Some(Ending::OffRoad) {
+                over_the_edge.push((seed, world.name(id).to_string(), world.vehicle(id).state.d));
+            }
+        }
+    }
+    assert!(over_the_edge.is_empty(), "{over_the_edge:?}");
 }

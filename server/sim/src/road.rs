@@ -266,6 +266,20 @@ impl Road {
         LaneId(index as u32)
     }
 
+    /// The offsets (low, high) between which the centre line of a body reaching
+    /// `half_width` to either side keeps all of it on lanes that have not ended at `s`:
+    /// the outer edges of the outermost such lanes, moved in by `half_width`. Past every
+    /// lane's end, the whole road's.
+    pub fn paved_band(&self, s: f64, half_width: f64) -> (f64, f64) {
+        let open = |lane: &usize| s <= self.lane_ends[*lane];
+        let lanes = 0..self.lane_count();
+        let left = lanes.clone().find(open).unwrap_or(0);
+        let right = lanes.rev().find(open).unwrap_or(self.lane_count() - 1);
+        let half = 0.5 * self.lane_width;
+        let edge = |lane: usize, side: f64| self.lane_center(LaneId(lane as u32)) + side * (half - half_width);
+        (edge(right, -1.0), edge(left, 1.0))
+    }
+
     /// Whether (s, d) lies on the paved road: within the outer edges and on a lane that has
     /// not ended.
     pub fn contains(&self, s: f64, d: f64) -> bool {

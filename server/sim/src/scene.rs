@@ -133,7 +133,8 @@ pub struct Scene {
     cars: Vec<Car>,
     /// Every car on the road, by s (ties by id).
     order: Vec<u32>,
-    /// Per lane, the cars in it or changing into it, by (s, id).
+    /// Per lane, the cars in it, changing into it or with part of their body over its
+    /// line, by (s, id).
     lanes: Vec<Vec<(f64, u32)>>,
 }
 
@@ -162,11 +163,25 @@ impl Scene {
         for lane in &mut self.lanes {
             lane.clear();
         }
+        let (road, body) = (&self.road, &self.vehicle);
         for &index in &self.order {
             let car = &self.cars[index as usize];
-            self.lanes[car.lane.0 as usize].push((car.state.s, index));
+            let (s, d) = (car.state.s, car.state.d);
+            self.lanes[car.lane.0 as usize].push((s, index));
             if car.target_lane != car.lane {
-                self.lanes[car.target_lane.0 as usize].push((car.state.s, index));
+                self.lanes[car.target_lane.0 as usize].push((s, index));
+            }
+            // A body across a lane line is in the lane beyond it too, whatever the lane
+            // change: a car stopped halfway out of a lane that ends, or drifting, is the
+            // leader of the cars behind it on both sides of the line.
+            // Half its width, and half its length times |sin heading| <= |heading|, as
+            // the world's collision sweep bounds a body's sideways reach.
+            let reach = 0.5 * (body.width + body.length * car.state.heading.abs());
+            let listed = [car.lane, car.target_lane];
+            let left = road.lane_at(s, d + reach).filter(|lane| !listed.contains(lane));
+            let right = road.lane_at(s, d - reach).filter(|lane| !listed.contains(lane) && Some(*lane) != left);
+            for lane in [left, right].into_iter().flatten() {
+                self.lanes[lane.0 as usize].push((s, index));
             }
         }
     }

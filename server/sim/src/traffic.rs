@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::road::{LaneChange, LaneId};
-use crate::scene::{Car as SceneCar, Lead, Scene, VehicleId};
+use crate::scene::{Car as SceneCar, Lead, Scene, Status, VehicleId};
 
 /// IDM and MOBIL constants. Defaults are highway-env's `IDMVehicle` (1.x).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -80,17 +80,22 @@ pub struct Car {
     pub target_speed: f64,
 }
 
+/// IDM's desired gap s* (centre to centre, m) of a car at `speed` behind one at
+/// `leader_speed`; cars are `length` long.
+fn desired_gap(params: &IdmParams, length: f64, speed: f64, leader_speed: f64) -> f64 {
+    let approach = speed - leader_speed;
+    params.jam_distance(length)
+        + speed * params.time_headway
+        + speed * approach / (2.0 * (params.max_accel * params.comfortable_decel).sqrt())
+}
+
 /// The IDM acceleration of `ego` behind `leader` (none: free road), clipped to the limit;
 /// cars are `length` long.
 fn idm_accel(params: &IdmParams, length: f64, ego: Car, leader: Option<Car>) -> f64 {
     let free = 1.0 - (ego.speed.max(0.0) / ego.target_speed.max(1e-3)).powf(params.exponent);
     let interaction = leader.map_or(0.0, |leader| {
         let gap = (leader.s - ego.s).max(1e-3);
-        let approach = ego.speed - leader.speed;
-        let desired = params.jam_distance(length)
-            + ego.speed * params.time_headway
-            + ego.speed * approach / (2.0 * (params.max_accel * params.comfortable_decel).sqrt());
-        (desired / gap).powi(2)
+        (desired_gap(params, length, ego.speed, leader.speed) / gap).powi(2)
     });
     (params.max_accel * (free - interaction)).clamp(-params.accel_limit, params.accel_limit)
 }
@@ -162,7 +167,7 @@ fn gap(scene: &Scene, lane: LaneId, s: f64, id: VehicleId) -> Gap {
 pub fn decide(params: &IdmParams, scene: &Scene, id: VehicleId, may_change_lanes: bool) -> IdmDecision {
     let car = scene.car(id);
     let consulted = may_change_lanes && car.target_lane == car.lane;
-    let change_to = if consulted { mobil(params, scene, car) } else { None };
+    let change_to = if consulted { mobil(params, scene, car) } else { yield_lane(params, scene, car) };
     let length = scene.vehicle.length;
     let ego = Car::of(car);
     let mut accel = idm_accel(params, length, ego, gap(scene, car.lane, ego.s, id).leader);
@@ -174,14 +179,14 @@ pub fn decide(params: &IdmParams, scene: &Scene, id: VehicleId, may_change_lanes
 }
 
 /// MOBIL over both neighbouring lanes: the one with the largest incentive above the
-/// threshold, if any. A lane that ends within two seconds of driving is no option.
+/// threshold, if any, among those `worth_entering`.
 fn mobil(params: &IdmParams, scene: &Scene, car: &SceneCar) -> Option<LaneId> {
     let ego = Car::of(car);
     let here = gap(scene, car.lane, ego.s, car.id);
     let mut best: Option<(f64, LaneId)> = None;
     for side in [LaneChange::Left, LaneChange::Right] {
         let Some(lane) = scene.lane_beside(car.lane, side) else { continue };
-        if scene.road.lane_end(lane) < ego.s + ego.speed * 2.0 {
+        if !worth_entering(scene, car.lane, lane) {
             continue;
         }
         let there = gap(scene, lane, ego.s, car.id);
@@ -193,6 +198,51 @@ fn mobil(params: &IdmParams, scene: &Scene, car: &SceneCar) -> Option<LaneId> {
         }
     }
     best.map(|(_, lane)| lane)
+}
+
+/// The lane car `car` returns to when another car is changing into the lane it is
+/// changing into, from the lane on its other side, and is ahead of it (of two abreast, the
+/// one with the larger id) by less than IDM's desired gap s*: the one behind gives way, so
+/// the two do not meet side by side in the lane between them. MOBIL decides at the same
+/// instant for every car, from where the others were, so each checked its own change
+/// against a lane that was free. None while it is in its own lane or already across the
+/// line. highway-env's `IDMVehicle.change_lane_policy` aborts the same way (it also
+/// yields to a car ahead changing from its own lane, which it follows anyway).
+fn yield_lane(params: &IdmParams, scene: &Scene, car: &SceneCar) -> Option<LaneId> {
+    let (lane, target) = (car.lane, car.target_lane);
+    if lane == target {
+        return None;
+    }
+    let (s, speed, length) = (car.state.s, car.speed(), scene.vehicle.length);
+    // No s* is longer than the one behind a standing car.
+    let reach = desired_gap(params, length, speed, 0.0);
+    let conflict = scene.around(s, reach).any(|other| {
+        other.status == Status::Driving
+            && other.target_lane == target
+            && other.lane != target
+            && other.lane != lane
+            && (other.state.s, other.id) > (s, car.id)
+            && other.state.s - s < desired_gap(params, length, speed, other.speed())
+    });
+    conflict.then_some(lane)
+}
+
+/// Whether MOBIL may move a car from lane `from` into lane `to`: only if `to` does not end
+/// before `from` does.
+///
+/// A lane that ends before the car's own is one it must leave again, and MOBIL cannot
+/// weigh that: its incentive is the acceleration gained now, behind the leaders of this
+/// instant, and it sees nothing of the merge back that the lane's end forces later. The
+/// through driver of an on-ramp does not enter the ramp for this reason (Treiber and
+/// Kesting's on-ramps, traffic-simulation.de, let the main road's cars never change onto
+/// the ramp). A rule from the distance a car needs (a change in, a change out again, and
+/// its stopping distance at b, with margins) was weighed and rejected: it guarantees that
+/// the car can stop before the end, not that it finds a gap to leave by, so in dense
+/// traffic the car still stalls there, which is what the rule is to prevent. A lane that
+/// ends no earlier than the car's own (the through lane, seen from the ramp; two lanes
+/// running the road's length) loses the car nothing and stays an option. No constant.
+fn worth_entering(scene: &Scene, from: LaneId, to: LaneId) -> bool {
+    scene.road.lane_end(to) >= scene.road.lane_end(from)
 }
 
 /// highway-env's proportional speed controller for learners' meta actions: towards the

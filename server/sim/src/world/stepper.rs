@@ -16,6 +16,30 @@ use super::{AgentCommand, Decision, Driver, Forced, Status, VehicleId, World, co
 use crate::dynamics;
 use crate::gt;
 
+/// How far sideways a preview point may lie from the car, per metre of road the driver
+/// previews (v T_p): 0.4, chosen here: the slope a lane change's path asks for at
+/// `FULL_PACE_SPEED` (its 1.9 m/s peak over 5 m/s), so that no path IDM or a learner's
+/// meta action previews reaches it.
+pub const PREVIEW_SLOPE: f64 = 0.4;
+
+/// `preview` held where a driver steering towards it keeps the car, at `state` and
+/// reaching `half_width` to either side, on the road: within `PREVIEW_SLOPE` of its
+/// preview distance of it (at a standstill, straight ahead: a driver aiming a lane away
+/// there holds the wheels at their lock and the car, creeping off, turns across the
+/// lanes), then within the road's edges where it is (`Road::paved_band`), beside a lane's
+/// end as along the road's outer edges, whatever its plan or path asks for.
+fn held(
+    road: &crate::road::Road,
+    half_width: f64,
+    state: &dynamics::VehicleState,
+    preview_time: f64,
+    preview: f64,
+) -> f64 {
+    let reach = PREVIEW_SLOPE * state.lane_speed().max(0.0) * preview_time;
+    let (low, high) = road.paved_band(state.s, half_width);
+    preview.max(state.d - reach).min(state.d + reach).max(low).min(high)
+}
+
 /// Advances worlds: scratch, threads, a clock and decisions made ahead, never state.
 #[derive(Debug, Clone)]
 pub struct Stepper {
@@ -336,6 +360,7 @@ impl Stepper {
         let per_control = params.substeps_per_control();
         let phase = state.ticks % per_control + 1;
         let road = &scene.road;
+        let half_width = scene.vehicle.width / 2.0;
         let (fleet, moving) = (&mut self.fleet, &mut self.moving);
         fleet.clear();
         moving.clear();
@@ -347,10 +372,19 @@ impl Stepper {
             // A gt car previews its plan's point, unless it is made to return to a lane
             // (`Forced::ReturnToLane`): then its path's, as every other driver.
             let returning = matches!(forced.get(index), Some(Some(Forced::ReturnToLane(_))));
+            let preview_time = setups[index].driver_params.preview_time;
             vehicle.command.preview = match vehicle.driver {
+                // A learner's continuous action steers where it says, off the road too:
+                // the world then ends it there (`Status::OffRoad`), as its env expects.
                 Driver::Agent(AgentCommand::Direct(command)) => command.preview,
-                Driver::Gt(_) if !returning => vehicle.command.preview,
-                _ => vehicle.path.preview(time, setups[index].driver_params.preview_time),
+                Driver::Gt(_) if !returning => {
+                    held(road, half_width, &vehicle.state, preview_time, vehicle.command.preview)
+                }
+                _ => {
+                    vehicle.path.pace(time, params.physics_dt, vehicle.state.lane_speed());
+                    let preview = vehicle.path.preview(time, preview_time);
+                    held(road, half_width, &vehicle.state, preview_time, preview)
+                }
             };
             let mut command = vehicle.command;
             if let Some(from) = vehicle.ramp_from.filter(|_| phase < per_control) {

@@ -20,7 +20,8 @@ mod world;
 // The surface, by the module that owns each item. What is not here stays inside: the
 // games, the field, the MPC's matrices, the integrator, IDM/MOBIL's internals.
 pub use dynamics::{
-    Command, DriverParams, LANE_CHANGE_DURATION, LateralPath, MAX_STATE_MAGNITUDE, Style, VehicleParams, VehicleState,
+    Command, DriverParams, FULL_PACE_SPEED, LANE_CHANGE_DURATION, LateralPath, MAX_STATE_MAGNITUDE, Style,
+    VehicleParams, VehicleState,
 };
 pub use gt::{
     AdjacentLateral, CostComponents, CostParams, CostWeights, Decision, DecisionParams, Diagnostics, Explanation,

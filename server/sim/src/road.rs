@@ -243,6 +243,25 @@ impl Road {
         self.lane_ends[lane.0 as usize]
     }
 
+    /// Whether a car may change from lane `from` into lane `to`: only if `to` does not end
+    /// before `from` does. MOBIL and the game-theoretic AV both ask.
+    ///
+    /// A lane that ends before the car's own is one it must leave again, and neither MOBIL
+    /// nor the AV's games weigh that: MOBIL's incentive is the acceleration gained now,
+    /// behind the leaders of this instant, and it sees nothing of the merge back that the
+    /// lane's end forces later. The
+    /// through driver of an on-ramp does not enter the ramp for this reason (Treiber and
+    /// Kesting's on-ramps, traffic-simulation.de, let the main road's cars never change onto
+    /// the ramp). A rule from the distance a car needs (a change in, a change out again, and
+    /// its stopping distance at b, with margins) was weighed and rejected: it guarantees that
+    /// the car can stop before the end, not that it finds a gap to leave by, so in dense
+    /// traffic the car still stalls there, which is what the rule is to prevent. A lane that
+    /// ends no earlier than the car's own (the through lane, seen from the ramp; two lanes
+    /// running the road's length) loses the car nothing and stays an option. No constant.
+    pub fn worth_entering(&self, from: LaneId, to: LaneId) -> bool {
+        self.lane_end(to) >= self.lane_end(from)
+    }
+
     /// Speed limit of `lane` (m/s).
     pub fn speed_limit(&self, lane: LaneId) -> f64 {
         self.speed_limits[lane.0 as usize]

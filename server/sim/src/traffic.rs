@@ -179,14 +179,14 @@ pub fn decide(params: &IdmParams, scene: &Scene, id: VehicleId, may_change_lanes
 }
 
 /// MOBIL over both neighbouring lanes: the one with the largest incentive above the
-/// threshold, if any, among those `worth_entering`.
+/// threshold, if any, among those `Road::worth_entering`.
 fn mobil(params: &IdmParams, scene: &Scene, car: &SceneCar) -> Option<LaneId> {
     let ego = Car::of(car);
     let here = gap(scene, car.lane, ego.s, car.id);
     let mut best: Option<(f64, LaneId)> = None;
     for side in [LaneChange::Left, LaneChange::Right] {
         let Some(lane) = scene.lane_beside(car.lane, side) else { continue };
-        if !worth_entering(scene, car.lane, lane) {
+        if !scene.road.worth_entering(car.lane, lane) {
             continue;
         }
         let there = gap(scene, lane, ego.s, car.id);
@@ -225,24 +225,6 @@ fn yield_lane(params: &IdmParams, scene: &Scene, car: &SceneCar) -> Option<LaneI
             && other.state.s - s < desired_gap(params, length, speed, other.speed())
     });
     conflict.then_some(lane)
-}
-
-/// Whether MOBIL may move a car from lane `from` into lane `to`: only if `to` does not end
-/// before `from` does.
-///
-/// A lane that ends before the car's own is one it must leave again, and MOBIL cannot
-/// weigh that: its incentive is the acceleration gained now, behind the leaders of this
-/// instant, and it sees nothing of the merge back that the lane's end forces later. The
-/// through driver of an on-ramp does not enter the ramp for this reason (Treiber and
-/// Kesting's on-ramps, traffic-simulation.de, let the main road's cars never change onto
-/// the ramp). A rule from the distance a car needs (a change in, a change out again, and
-/// its stopping distance at b, with margins) was weighed and rejected: it guarantees that
-/// the car can stop before the end, not that it finds a gap to leave by, so in dense
-/// traffic the car still stalls there, which is what the rule is to prevent. A lane that
-/// ends no earlier than the car's own (the through lane, seen from the ramp; two lanes
-/// running the road's length) loses the car nothing and stays an option. No constant.
-fn worth_entering(scene: &Scene, from: LaneId, to: LaneId) -> bool {
-    scene.road.lane_end(to) >= scene.road.lane_end(from)
 }
 
 /// highway-env's proportional speed controller for learners' meta actions: towards the

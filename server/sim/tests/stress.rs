@@ -188,3 +188,16 @@ fn a_copy_of_the_world_replays_its_collision_exactly() {
     assert!(!original.is_empty());
     assert_eq!(original, replay);
 }
+
+#[test]
+fn time_to_collision_counts_the_braking_of_the_car_ahead() {
+    // By hand: 10 m closing at 5 m/s, 2 s; 10 m at equal speeds with the car ahead braking
+    // at 2 m/s^2, sqrt(10) s; 5.2 m closing at 1.6 m/s with it braking at 5,
+    // (-1.6 + sqrt(1.6^2 + 4 * 2.5 * 5.2)) / 5 s; a car ahead pulling away, never.
+    assert_eq!(stress::time_to_collision(10.0, 5.0, 0.0), 2.0);
+    assert!((stress::time_to_collision(10.0, 0.0, -2.0) - 10f64.sqrt()).abs() < 1e-12);
+    let by_hand = (-1.6 + (1.6f64 * 1.6 + 4.0 * 2.5 * 5.2).sqrt()) / 5.0;
+    assert!((stress::time_to_collision(5.2, 1.6, -5.0) - by_hand).abs() < 1e-12);
+    assert_eq!(stress::time_to_collision(10.0, -1.0, 0.5), f64::INFINITY);
+    assert_eq!(stress::time_to_collision(0.0, -1.0, 0.0), 0.0);
+}

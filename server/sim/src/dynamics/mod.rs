@@ -36,7 +36,7 @@ pub use linear::linearise;
 #[cfg(test)]
 use model::{derivative, fixed_steer_derivative};
 pub use params::{DriverParams, Style, VehicleParams};
-pub use path::{LANE_CHANGE_DURATION, LateralPath};
+pub use path::{FULL_PACE_SPEED, LANE_CHANGE_DURATION, LateralPath};
 #[cfg(test)]
 use physics_step::LATERAL_STATES;
 pub use physics_step::{

@@ -324,8 +324,8 @@ fn side_option(
     let ego = kinematics(car);
     let lane = scene.lane_beside(car.lane, side)?;
     let ahead = scene.road.lane_end(lane) - ego.s;
-    if scene.road.lane_end(lane) < scene.road.length() && ahead < ego.speed.max(10.0) * params.interaction.lane_end_time
-    {
+    let ends_soon = ahead < ego.speed.max(10.0) * params.interaction.lane_end_time;
+    if scene.road.lane_end(lane) < scene.road.length() && (ends_soon || !scene.road.worth_entering(car.lane, lane)) {
         return None;
     }
     if car.lane_change().sigma() != side.sigma() && !gap_open(scene, id, lane, params) {
@@ -788,9 +788,16 @@ pub fn plan(scene: &Scene, id: VehicleId, setup: &GtSetup, memory: &GtMemory, mp
     if let Some(duration) = decision.duration.filter(|&t| t < LANE_CHANGE_DURATION) {
         mpc_params.max_step *= LANE_CHANGE_DURATION / duration;
     }
+    // Out of emergency braking (a command past the games' firmest), the brake is let go at
+    // once to the games' firmest; from there the command ramps at the jerk bound, as any.
+    // Ramping all the way up from -8 kept the car braking past -6 for half a second after
+    // the danger had gone.
+    let firm = -params.decision.game.accel_min;
+    let released = exemption.is_none() && car.accel < -firm && decision.accel > car.accel;
+    let from = if released { -firm } else { car.accel };
     let ramp = match exemption {
         Some(_) => AccelRamp::step(decision.accel),
-        None => params.decision.jerk.ramp(car.accel, decision.accel),
+        None => params.decision.jerk.ramp(from, decision.accel),
     };
     match plan_motion_with(scene, id, (params, memory), &mpc_params, ramp, target, mpc) {
         Ok(solution) => {
@@ -801,7 +808,10 @@ pub fn plan(scene: &Scene, id: VehicleId, setup: &GtSetup, memory: &GtMemory, mp
             next.diagnostics.iterations_total += u64::from(solution.iterations);
             next.diagnostics.plans += 1;
             let jerk = (&params.decision.jerk, &mut next.diagnostics);
-            let (accel, ramp) = command_accel(car.accel, decision.accel, scene.control_dt, exemption, jerk);
+            let (accel, mut ramp) = command_accel(from, decision.accel, scene.control_dt, exemption, jerk);
+            if released && accel - car.accel > params.decision.jerk.step_limit(scene.control_dt) {
+                (ramp, next.diagnostics.emergency_jumps) = (false, next.diagnostics.emergency_jumps + 1);
+            }
             let command = Command { accel, preview: solution.preview };
             GtStep { command, change_to: (target != car.target_lane).then_some(target), ramp, memory: next }
         }

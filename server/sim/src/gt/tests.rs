@@ -1028,3 +1028,40 @@ fn a_car_two_lanes_over_deciding_to_change_is_not_in_the_lane_the_av_leaves() {
     vehicle.target_lane = LaneId(2);
     assert_eq!(safety_limit(&mut world, ec, 2, 0.0), None);
 }
+
+#[test]
+fn a_through_car_does_not_enter_a_lane_that_ends_before_its_own() {
+    // An on-ramp's lane (lane 2) ending 300-900 m ahead, a slow car ahead in the AV's
+    // lane 1, lane 0 taken beside: the ramp was an option whenever its end was more than
+    // 8 s of driving away, and cars that took it stalled at its end.
+    for end in [400.0, 700.0, 900.0] {
+        for style in Style::ALL {
+            let road = straight_road(3, &[(LaneId(2), end)]);
+            let cars = [
+                ("av", 1, 100.0, 25.0, style, gt(Game::Nash, Role::Leader)),
+                ("slow", 1, 140.0, 10.0, Style::Normal, scripted(&road, 1, 0.0)),
+                ("beside", 0, 100.0, 25.0, Style::Normal, scripted(&road, 0, 0.0)),
+            ];
+            let mut world = world_with(road.clone(), &cars);
+            let decision = plan_of(&mut world, VehicleId(0)).memory.decision;
+            assert_ne!(decision.lane_change, LaneChange::Right, "lane 2 ends at {end}, {style:?}: {decision:?}");
+        }
+    }
+}
+
+#[test]
+fn emergency_braking_is_let_go_at_once_to_the_games_firmest() {
+    // Its last command braked at -8 (an emergency) and nothing is ahead any more: ramping
+    // up at the jerk bound kept it past -6 for half a second.
+    for style in Style::ALL {
+        for last in [-8.0, -6.5, -4.5] {
+            let cars = [("av", 1, 100.0, 20.0, style, gt(Game::Stackelberg, Role::Leader))];
+            let mut world = world_with(fast_road(3), &cars);
+            world.vehicle_mut(VehicleId(0)).command.accel = last;
+            let step = plan_of(&mut world, VehicleId(0));
+            let firm = GameParams::default().accel_min;
+            assert!(step.command.accel > firm && !step.ramp, "{style:?} from {last}: {:?}", step.command);
+            assert_eq!(step.memory.diagnostics.emergency_jumps, 1, "{style:?} from {last}");
+        }
+    }
+}

@@ -8,8 +8,8 @@
 use std::collections::VecDeque;
 
 use arena_sim::{
-    AgentCommand, AtFault, CUT_IN_WINDOW, Collision, Command, DRIFT_SPEED, Ending, Forced, Game, LANE_CHANGE_DURATION,
-    LaneId, LateralPath, Scenario, Status, Stepper, Style, VehicleId, World,
+    AgentCommand, AtFault, CUT_IN_WINDOW, Collision, Command, DRIFT_SPEED, Driver, Ending, FULL_PACE_SPEED, Forced,
+    Game, LANE_CHANGE_DURATION, LaneId, LateralPath, Scenario, Status, Stepper, Style, VehicleId, World,
 };
 
 use crate::highway_gt;
@@ -20,10 +20,14 @@ pub const SECONDS: f64 = 40.0;
 /// traffic brakes at most this hard (`IdmParams::accel_limit`).
 pub const HARD_BRAKING: f64 = -6.0;
 /// Hard braking is justified by a car (or a lane's end) in or entering the braking car's
-/// path within this time to collision (s), issue 43's target 3.
+/// path within this time to collision (s), issue 43's target 3. The time to collision is
+/// the braking car's had it held its speed, the car ahead keeping its acceleration (the
+/// modified TTC of Ozbay et al. 2008): a car ahead that brakes closes the gap sooner than
+/// its speed alone says.
 pub const PHANTOM_TTC: f64 = 2.0;
 /// A gt car further than this (m) from its target lane's centre, in that lane, with the
-/// target unchanged for `LANE_CHANGE_DURATION`, drifts outside a lane change.
+/// target unchanged for `LANE_CHANGE_DURATION` of lane-change time (paced as a lane
+/// change's path is, below `FULL_PACE_SPEED`), drifts outside a lane change.
 pub const DRIFT_BOUND: f64 = 0.5;
 /// A replay starts from the world this long (s) before the collision it replays...
 pub const REPLAY_LEAD: f64 = 1.0;
@@ -281,6 +285,9 @@ struct Track {
     /// Its target lane at the last sample, and since when.
     target: LaneId,
     target_since: f64,
+    /// Lane-change time since then: simulated time at the pace a lane change's path keeps
+    /// (`FULL_PACE_SPEED`): a car stopped in a queue halfway across is still changing.
+    paced_since_target: f64,
     /// The lane change under way (from, to) until its centre crosses into `to`.
     change: Option<(LaneId, LaneId)>,
     /// Each lane change it began: when, and the lane it left.
@@ -299,6 +306,7 @@ impl Track {
             id,
             target: world.vehicle(id).target_lane,
             target_since: f64::NEG_INFINITY,
+            paced_since_target: f64::INFINITY,
             change: None,
             begun: Vec::new(),
             hard_braking: false,
@@ -332,11 +340,14 @@ impl Track {
             }
             self.target = vehicle.target_lane;
             self.target_since = time;
+            self.paced_since_target = 0.0;
         }
         if self.change.is_some_and(|(_, to)| here == Some(to)) {
             self.change = None;
         }
-        if here == Some(self.target) && time - self.target_since >= LANE_CHANGE_DURATION - 1e-9 {
+        let period = world.params().control_dt;
+        self.paced_since_target += period * (vehicle.state.lane_speed() / FULL_PACE_SPEED).clamp(0.0, 1.0);
+        if here == Some(self.target) && self.paced_since_target >= LANE_CHANGE_DURATION - 1e-9 {
             let offset = (vehicle.state.d - road.lane_center(self.target)).abs();
             self.max_drift = self.max_drift.max(offset);
             if offset > DRIFT_BOUND && !self.drift {
@@ -353,13 +364,30 @@ impl Track {
             if !self.phantom && !threatened(world, self.id) {
                 self.phantom = true;
                 let nearest = in_path(world, self.id).into_iter().min_by(|a, b| a.1.total_cmp(&b.1));
-                let ahead = nearest.map_or("nothing ahead".to_string(), |(car, gap, closing)| {
+                let ahead = nearest.map_or("nothing ahead".to_string(), |(car, gap, closing, _)| {
                     let what = car.map_or("its lane's end", |car| world.name(car));
                     format!("nearest in its path {what}, {gap:.1} m ahead closing at {closing:.1} m/s")
                 });
+                let reason = match &vehicle.driver {
+                    Driver::Gt(memory) => match memory.diagnostics.safety {
+                        Some(o) => {
+                            let other = world.vehicle(o.car);
+                            format!(
+                                "; the safety layer braked for {} at {:+.1} m, {:+.2} m across, {:.1} m/s, {:?}",
+                                world.name(o.car),
+                                other.state.s - vehicle.state.s,
+                                other.state.d - vehicle.state.d,
+                                other.state.lane_speed(),
+                                other.status
+                            )
+                        }
+                        None => format!("; no safety override, decided {:+.2}", memory.decision.accel),
+                    },
+                    _ => String::new(),
+                };
                 notes.push(format!(
                     "t={time:5.2} {} brakes at {:.2} m/s^2 at {:.1} m/s, nothing within {PHANTOM_TTC} s in its path \
-                     ({ahead})",
+                     ({ahead}{reason})",
                     world.name(self.id),
                     vehicle.command.accel,
                     vehicle.state.lane_speed()
@@ -387,20 +415,38 @@ impl Track {
 /// gt car faster than `DRIFT_SPEED` from within one and a half lane widths of it; or the
 /// end of a lane of the path, as a stopped car.
 pub fn threatened(world: &World, id: VehicleId) -> bool {
-    let near = |&(_, gap, closing): &(Option<VehicleId>, f64, f64)| {
-        gap <= 0.0 || (closing > 0.0 && gap < closing * PHANTOM_TTC)
-    };
-    in_path(world, id).iter().any(near)
+    in_path(world, id)
+        .iter()
+        .any(|&(_, gap, closing, lead_accel)| time_to_collision(gap, closing, lead_accel) < PHANTOM_TTC)
+}
+
+/// When a gap of `gap` m closing at `closing` m/s closes if the car ahead keeps `lead_accel`
+/// (m/s^2, until it stops) and the car behind its speed: infinite if it never does.
+pub fn time_to_collision(gap: f64, closing: f64, lead_accel: f64) -> f64 {
+    if gap <= 0.0 {
+        return 0.0;
+    }
+    // gap(t) = gap - closing t + lead_accel t^2 / 2, while the car ahead moves.
+    let (a, b, c) = (0.5 * lead_accel, -closing, gap);
+    if a.abs() < 1e-12 {
+        return if closing > 0.0 { gap / closing } else { f64::INFINITY };
+    }
+    let discriminant = b * b - 4.0 * a * c;
+    if discriminant < 0.0 {
+        return f64::INFINITY;
+    }
+    let root = discriminant.sqrt();
+    [(-b - root) / (2.0 * a), (-b + root) / (2.0 * a)].into_iter().filter(|&t| t > 0.0).fold(f64::INFINITY, f64::min)
 }
 
 /// What is in or entering gt car `id`'s path ahead of it (see `threatened`): each car
 /// (`None`: a lane's end) with its bumper gap (m) and closing speed (m/s).
-fn in_path(world: &World, id: VehicleId) -> Vec<(Option<VehicleId>, f64, f64)> {
+fn in_path(world: &World, id: VehicleId) -> Vec<(Option<VehicleId>, f64, f64, f64)> {
     let (road, length) = (world.road(), world.vehicle_params().length);
     let me = world.vehicle(id);
     let (s, d, speed) = (me.state.s, me.state.d, me.state.lane_speed());
     let path = [road.lane_at(s, d).unwrap_or(me.target_lane), me.target_lane];
-    let ends = path.iter().map(|&lane| (None, road.lane_end(lane) - s - length / 2.0, speed));
+    let ends = path.iter().map(|&lane| (None, road.lane_end(lane) - s - length / 2.0, speed, 0.0));
     let cars = world.vehicles().iter().enumerate().filter_map(|(j, other)| {
         if j == id.0 as usize || !other.on_road() || other.state.s < s {
             return None;
@@ -411,7 +457,8 @@ fn in_path(world: &World, id: VehicleId) -> Vec<(Option<VehicleId>, f64, f64)> {
         let towards =
             lateral_speed * (d - state.d).signum() > DRIFT_SPEED && (d - state.d).abs() < 1.5 * road.lane_width();
         let entering = path.contains(&lane) || path.contains(&other.target_lane) || towards;
-        entering.then(|| (Some(VehicleId(j as u32)), state.s - s - length, speed - state.lane_speed()))
+        let lead_accel = if state.lane_speed() > 0.0 { other.command.accel } else { 0.0 };
+        entering.then(|| (Some(VehicleId(j as u32)), state.s - s - length, speed - state.lane_speed(), lead_accel))
     });
     ends.chain(cars).collect()
 }

@@ -184,7 +184,11 @@ impl Vehicle {
             status: Status::Driving,
             last_lane_decision: f64::NEG_INFINITY,
             lane_entry: LaneEntry { lane, at: None },
-            occupancy: vec![Occupancy { lane, since: None, behind: None }],
+            occupancy: {
+                let mut occupancy = Vec::with_capacity(3);
+                occupancy.push(Occupancy { lane, since: None, behind: None });
+                occupancy
+            },
         }
     }
 
@@ -707,8 +711,11 @@ impl World {
             if !self.state.vehicles[index].on_road() {
                 continue;
             }
-            if let Some(occupancy) = self.occupancy_now(index) {
-                self.state.vehicles[index].occupancy = occupancy;
+            if let Some(now) = self.occupancy_now(index) {
+                // In place: the notes keep room for three lanes, so a tick allocates nothing.
+                let occupancy = &mut self.state.vehicles[index].occupancy;
+                occupancy.clear();
+                occupancy.extend(now.into_iter().flatten());
             }
         }
     }
@@ -726,7 +733,10 @@ impl World {
     /// Vehicle `index` as the responsibility rule reads it now.
     fn party(&self, index: usize) -> Party {
         let vehicle = &self.state.vehicles[index];
-        let lanes = self.occupancy_now(index).unwrap_or_else(|| vehicle.occupancy.clone());
+        let lanes = match self.occupancy_now(index) {
+            Some(now) => now.into_iter().flatten().collect(),
+            None => vehicle.occupancy.clone(),
+        };
         Party { id: VehicleId(index as u32), speed: vehicle.state.vx, lanes }
     }
 
@@ -742,7 +752,7 @@ impl World {
     /// there as it came in, if they differ from its notes: a lane it was not in at the
     /// last control instant is entered now, and a gap it left too close is re-measured
     /// (its car behind may have fallen back, or left the lane). `None`: as noted.
-    fn occupancy_now(&self, index: usize) -> Option<Vec<Occupancy>> {
+    fn occupancy_now(&self, index: usize) -> Option<[Option<Occupancy>; 3]> {
         let (vehicle, time) = (&self.state.vehicles[index], self.state.time);
         let lanes = self.lanes_of(vehicle);
         let noted = |lane: LaneId| vehicle.occupancy.iter().find(|o| o.lane == lane);
@@ -755,12 +765,15 @@ impl World {
         if same && !vehicle.occupancy.iter().any(unsettled) {
             return None;
         }
-        let now = lanes.iter().flatten().map(|&lane| match noted(lane) {
-            Some(o) if unsettled(o) => Occupancy { behind: o.behind.map(|gap| self.settle(index, lane, gap)), ..*o },
-            Some(o) => *o,
-            None => self.enter(index, lane),
-        });
-        Some(now.collect())
+        Some(lanes.map(|lane| {
+            lane.map(|lane| match noted(lane) {
+                Some(o) if unsettled(o) => {
+                    Occupancy { behind: o.behind.map(|gap| self.settle(index, lane, gap)), ..*o }
+                }
+                Some(o) => *o,
+                None => self.enter(index, lane),
+            })
+        }))
     }
 
     /// Vehicle `index` entering `lane` now: the car nearest behind it there, and the gap.

@@ -15,7 +15,7 @@ mod stress;
 
 use std::ops::Range;
 
-use arena_sim::{BUILTIN_SCENARIOS, Ending};
+use arena_sim::{BUILTIN_SCENARIOS, Driver, Ending};
 use stress::{Episode, FAMILIES, Family, find_family};
 
 /// The reset seeds every family runs here.
@@ -23,7 +23,16 @@ const SEEDS: Range<u64> = 0..10;
 
 /// No collision with a gt car at fault, by the new rule and the old one (non-adversarial
 /// families).
-const NO_GT_AT_FAULT: &[&str] = &["gt16", "half-gt", "dense-conservative", "fast-aggressive-nash", "on-ramp"];
+const NO_GT_AT_FAULT: &[&str] = &[
+    "gt16",
+    "half-gt",
+    "dense-normal-stackelberg",
+    "dense-aggressive-nash",
+    "dense-conservative",
+    "fast-aggressive-nash",
+    "on-ramp",
+    "on-ramp-dense",
+];
 /// No gt car off the road or past the end of its lane.
 const NO_GT_OFF_ROAD: &[&str] = &[
     "gt16",
@@ -33,17 +42,39 @@ const NO_GT_OFF_ROAD: &[&str] = &[
     "dense-conservative",
     "fast-aggressive-nash",
     "on-ramp",
+    "on-ramp-dense",
+    "adversarial-cut-in",
     "adversarial-drift",
     "adversarial-close-gap",
 ];
 /// No gt car further than 0.5 m from its lane's centre outside a lane change.
-const NO_DRIFT: &[&str] = &["gt16"];
+const NO_DRIFT: &[&str] = &[
+    "gt16",
+    "half-gt",
+    "dense-normal-stackelberg",
+    "dense-conservative",
+    "fast-aggressive-nash",
+    "on-ramp",
+    "on-ramp-dense",
+    "adversarial-cut-in",
+    "adversarial-drift",
+    "adversarial-close-gap",
+];
 /// No gt car braking below -6 m/s^2 without a car within 2 s time to collision in or
 /// entering its path.
-const NO_PHANTOM_BRAKING: &[&str] = &["gt16", "on-ramp", "adversarial-close-gap"];
+const NO_PHANTOM_BRAKING: &[&str] = &[
+    "gt16",
+    "half-gt",
+    "dense-normal-stackelberg",
+    "dense-aggressive-nash",
+    "dense-conservative",
+    "fast-aggressive-nash",
+    "on-ramp",
+    "adversarial-close-gap",
+];
 /// The merging gt car merges in every episode, never at fault, never past the ramp's end
 /// (on-ramp families).
-const MERGES: &[&str] = &["on-ramp"];
+const MERGES: &[&str] = &["on-ramp", "on-ramp-dense"];
 /// No collision with a gt car at fault that returning to its lane or braking at -6 m/s^2
 /// from 1 s before avoids (adversarial families).
 const NO_AVOIDABLE_GT_AT_FAULT: &[&str] = &["adversarial-cut-in", "adversarial-drift", "adversarial-close-gap"];
@@ -179,7 +210,7 @@ fn an_episode_is_the_same_bits_from_the_same_seed() {
 fn a_copy_of_the_world_replays_its_collision_exactly() {
     // The replays that judge avoidability start from copies kept every control period:
     // unforced, a copy runs into the same collisions at the same times.
-    let family = find_family("on-ramp-dense").unwrap();
+    let family = find_family("dense-conservative").unwrap();
     let scenario = family.scenario();
     let (original, replay) = SEEDS
         .clone()
@@ -200,4 +231,18 @@ fn time_to_collision_counts_the_braking_of_the_car_ahead() {
     assert!((stress::time_to_collision(5.2, 1.6, -5.0) - by_hand).abs() < 1e-12);
     assert_eq!(stress::time_to_collision(10.0, -1.0, 0.5), f64::INFINITY);
     assert_eq!(stress::time_to_collision(0.0, -1.0, 0.0), 0.0);
+}
+
+#[test]
+fn the_learner_of_a_family_without_a_script_is_on_idm_in_every_episode() {
+    // on-ramp draws its merger from `[vary]`: each episode is parsed again from the file, and
+    // the learner once went back to tracking its speed blind and ran into the traffic.
+    for family in FAMILIES.iter().filter(|f| !f.is_adversarial()) {
+        let scenario = family.scenario();
+        for seed in 0..3 {
+            let world = highway_gt::world(&scenario, seed);
+            let learner = world.find(stress::LEARNER).expect("a learner's car");
+            assert!(matches!(world.vehicle(learner).driver, Driver::Idm), "{} seed {seed}", family.name);
+        }
+    }
 }

@@ -37,7 +37,7 @@ pub const REPLAY_HORIZON: f64 = 5.0;
 /// The braking a replay forces (m/s^2).
 pub const REPLAY_BRAKING: f64 = -6.0;
 /// Every file's learner.
-const LEARNER: &str = "ego_0";
+pub const LEARNER: &str = "ego_0";
 /// Copies of the episode kept, one a control period: more than `REPLAY_LEAD` of them.
 const RING: usize = 12;
 
@@ -117,11 +117,15 @@ pub fn find_family(name: &str) -> Result<&'static Family, String> {
 impl Family {
     /// Its scenario, the learner's car on IDM + MOBIL unless a script drives it.
     pub fn scenario(&self) -> Scenario {
-        let scenario = Scenario::parse(self.file, self.text, &[]).unwrap_or_else(|e| panic!("{e}"));
-        match self.learner {
-            Learner::Idm => highway_gt::idm_learners(scenario),
-            Learner::Script(_) => scenario,
-        }
+        // The learner's car on IDM as an override of the file, not an edit of the parsed
+        // scenario: an episode of a file with `[vary]` is parsed again from its text and
+        // overrides, and an edit would be lost (the learner then tracked its speed blind).
+        let idm = toml::Value::Table(toml::map::Map::from_iter([("kind".to_string(), "idm".into())]));
+        let overrides = match self.learner {
+            Learner::Idm => vec![(format!("vehicle.{LEARNER}.driver"), idm)],
+            Learner::Script(_) => Vec::new(),
+        };
+        Scenario::parse(self.file, self.text, &overrides).unwrap_or_else(|e| panic!("{e}"))
     }
 
     /// Whether a script pushes the gt cars.
@@ -411,9 +415,9 @@ impl Track {
 
 /// Whether something is in or entering gt car `id`'s path (the lane it is in and its
 /// target lane) within `PHANTOM_TTC` of time to collision ahead of it, or level with it:
-/// a car whose centre or target lane is in the path, or that moves sideways towards the
-/// gt car faster than `DRIFT_SPEED` from within one and a half lane widths of it; or the
-/// end of a lane of the path, as a stopped car.
+/// a car whose centre, target lane or body (straddling a lane line) is in the path, or
+/// that moves sideways towards the gt car faster than `DRIFT_SPEED` from within one and a
+/// half lane widths of it; or the end of a lane of the path, as a stopped car.
 pub fn threatened(world: &World, id: VehicleId) -> bool {
     in_path(world, id)
         .iter()
@@ -456,7 +460,9 @@ fn in_path(world: &World, id: VehicleId) -> Vec<(Option<VehicleId>, f64, f64, f6
         let lateral_speed = state.vx * state.heading.sin() + state.vy * state.heading.cos();
         let towards =
             lateral_speed * (d - state.d).signum() > DRIFT_SPEED && (d - state.d).abs() < 1.5 * road.lane_width();
-        let entering = path.contains(&lane) || path.contains(&other.target_lane) || towards;
+        let reach = 0.5 * (road.lane_width() + world.vehicle_params().width);
+        let body_in = path.iter().any(|&lane| (state.d - road.lane_center(lane)).abs() < reach);
+        let entering = path.contains(&lane) || path.contains(&other.target_lane) || towards || body_in;
         let lead_accel = if state.lane_speed() > 0.0 { other.command.accel } else { 0.0 };
         entering.then(|| (Some(VehicleId(j as u32)), state.s - s - length, speed - state.lane_speed(), lead_accel))
     });

@@ -47,7 +47,12 @@ fn parse(args: &[String]) -> Result<Options, String> {
             "--family" => options.families.push(stress::find_family(value()?)?),
             "--csv" => options.csv = value()?.clone(),
             "--notes" => options.notes = true,
-            "--help" | "-h" => return Err(USAGE.to_string()),
+            "--help" | "-h" => {
+                println!(
+                    "{USAGE}\n\nRuns the stress families of scenarios/stress/ (docs/baselines.md, \"Stress suite\")."
+                );
+                std::process::exit(0);
+            }
             other => return Err(format!("unknown argument '{other}'\n{USAGE}")),
         }
     }

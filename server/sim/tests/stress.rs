@@ -66,10 +66,10 @@ const NO_PHANTOM_BRAKING: &[&str] = &[
     "gt16",
     "half-gt",
     "dense-normal-stackelberg",
-    "dense-aggressive-nash",
     "dense-conservative",
     "fast-aggressive-nash",
     "on-ramp",
+    "on-ramp-dense",
     "adversarial-close-gap",
 ];
 /// The merging gt car merges in every episode, never at fault, never past the ramp's end

@@ -54,11 +54,11 @@ pub struct SafetyParams {
     /// firmest braking (-a_min) and the lane it leaves asks less.
     pub gap_braking: f64,
     /// RSS's response time (s) of the car behind the gap the AV starts a lane change into
-    /// on the open road: the AV enters only where that car, holding its command this long
-    /// and then braking at `lead_brake`, stays `margin` behind the AV braking as hard;
-    /// at equal speeds that is this time headway, behind a slower car less. 0.6, chosen
-    /// here: under the IDM cars' 5th-percentile headway in highway-gt traffic (0.64 s), so
-    /// the AV cuts in no closer than the traffic does.
+    /// on the open road: the AV enters only where that car, holding its command (if it
+    /// speeds up) this long and then braking at `lead_brake`, stays `margin` behind the AV
+    /// braking as hard; at equal speeds that is this time headway, behind a slower car
+    /// less. 1: the responsibility rule's response time (`world::BLAME_RESPONSE_TIME`), so
+    /// the AV enters no gap that rule would call too close and be at fault for.
     pub follower_response: f64,
 }
 
@@ -73,7 +73,7 @@ impl Default for SafetyParams {
             margin: 1.0,
             cut_in_time: 1.0,
             gap_braking: 2.0,
-            follower_response: 0.6,
+            follower_response: 1.0,
         }
     }
 }
@@ -321,7 +321,7 @@ pub(super) fn follower_keeps_distance(scene: &Scene, id: VehicleId, lane: LaneId
         let gap = me.state.s - rear.state.s - scene.vehicle.length;
         let braking = Braking {
             speed: rear.speed().max(0.0),
-            accel: rear.accel,
+            accel: rear.accel.max(0.0),
             hold: params.follower_response,
             brake: params.lead_brake,
         };

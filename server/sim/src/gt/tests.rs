@@ -970,13 +970,13 @@ fn a_lane_change_whose_gap_closes_is_given_up() {
 #[test]
 fn a_change_is_not_started_into_a_gap_that_asks_for_hard_braking() {
     // A car stopped ahead makes lane 0 worth changing to. There, the nearest car (the
-    // games' AC) is 25 m behind at the AV's speed; the car ahead of the gap, 25 m on, is
+    // games' AC) is 35 m behind at the AV's speed; the car ahead of the gap, 40 m on, is
     // 15 m/s slower: the games weighed it only for speed. Entering would ask the AV to
     // brake past MOBIL's 2 m/s^2. Without that car, the AV changes.
     let road = fast_road(2);
     let stopped = ("stopped", 1, 150.0, 0.0, Style::Normal, scripted(&road, 1, 0.0));
-    let ac = ("ac", 0, 75.0, 25.0, Style::Normal, scripted(&road, 0, 0.0));
-    let slow = ("slow", 0, 130.0, 10.0, Style::Normal, scripted(&road, 0, 0.0));
+    let ac = ("ac", 0, 65.0, 25.0, Style::Normal, scripted(&road, 0, 0.0));
+    let slow = ("slow", 0, 140.0, 10.0, Style::Normal, scripted(&road, 0, 0.0));
     for style in Style::ALL {
         for game in Game::ALL {
             let av = ("av", 1, 100.0, 25.0, style, gt(game, Role::Leader));

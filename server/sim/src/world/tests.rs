@@ -616,3 +616,12 @@ fn only_a_gt_car_can_be_forced() {
         world.add(VehicleSetup::new("idm", Style::Normal), Vehicle::new(&road, LaneId(0), 10.0, 20.0, Driver::Idm));
     world.force(idm, Forced::Brake(-6.0));
 }
+
+#[test]
+fn the_av_enters_no_gap_the_responsibility_rule_would_call_too_close() {
+    // The AV's gap rule (gt::SafetyParams) counts on the car behind as the responsibility
+    // rule does: its response time, and both cars braking at the same hardest braking.
+    let safety = crate::gt::GtParams::default().safety;
+    assert_eq!(safety.follower_response, crate::world::BLAME_RESPONSE_TIME);
+    assert_eq!(safety.lead_brake, crate::world::BLAME_BRAKE);
+}

@@ -170,19 +170,22 @@ pub fn road_lines(road: &Road, p: &FieldParams, one_sided: bool) -> Vec<Line> {
     lines
 }
 
-/// The field a car sees: obstacles and lines, evaluated at predicted instants.
 /// The lines of lane keeping in `lane` at `s`: the two that bound it, each at the higher
 /// of their peaks (an edge's, if either is one), so that the road's part of the field is
 /// least at the lane's centre. Eq. (21) as `road_lines` draws it is least where an edge's
-/// and a lane line's slopes balance, 0.13 m off the centre of an outer lane.
+/// and a lane line's slopes balance, 0.13 m off the centre of an outer lane. A bound is a
+/// lane line where the lane beside it is still there at `s` (as `road_lines` draws it).
 pub fn lane_lines(road: &Road, lane: LaneId, s: f64, p: &FieldParams) -> Vec<Line> {
     let (centre, half) = (road.lane_center(lane), 0.5 * road.lane_width());
-    let bounds = |line: &&Line| (line.from..=line.to).contains(&s) && ((line.d - centre).abs() - half).abs() < 1e-9;
-    let peak = road_lines(road, p, false).iter().filter(bounds).map(|line| line.peak).fold(p.line_peak, f64::max);
+    let beside =
+        |other: Option<u32>| other.is_some_and(|k| (k as usize) < road.lane_count() && s <= road.lane_end(LaneId(k)));
+    let shared = s <= road.lane_end(lane) && beside(lane.0.checked_sub(1)) && beside(Some(lane.0 + 1));
+    let peak = if shared { p.line_peak } else { p.edge_peak.max(p.line_peak) };
     let to = road.lane_end(lane);
     [centre + half, centre - half].map(|d| Line { d, peak, from: 0.0, to, road_side: 0 }).to_vec()
 }
 
+/// The field a car sees: obstacles and lines, evaluated at predicted instants.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Field {
     /// The constants.

@@ -47,13 +47,13 @@ const TARGETS: [Target; 6] = [
         name: "no gt car further than 0.5 m from its lane's centre outside a lane change",
         applies: |_| true,
         missed: |e| e.drift > 0,
-        misses: &["dense-aggressive-nash"],
+        misses: &[],
     },
     Target {
         name: "no gt car braking below -6 m/s^2 without a car within 2 s time to collision in or entering its path",
         applies: |_| true,
         missed: |e| e.phantom > 0,
-        misses: &["dense-aggressive-nash", "adversarial-cut-in", "adversarial-drift"],
+        misses: &["adversarial-cut-in", "adversarial-drift"],
     },
     Target {
         name: "the merging gt car merges, never at fault, never past the ramp's end",

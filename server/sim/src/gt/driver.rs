@@ -97,6 +97,7 @@ impl GtParams {
             ("decision.game.follower_tolerance", g.follower_tolerance),
             ("decision.game.speed_min", g.speed_min),
             ("mpc.lane_keeping_bound", self.mpc.lane_keeping_bound),
+            ("mpc.return_step", self.mpc.return_step),
         ];
         for (key, value) in non_negative {
             if !(value.is_finite() && value >= 0.0) {
@@ -143,6 +144,7 @@ impl GtParams {
         for (key, value) in [
             ("safety.margin", safety.margin),
             ("safety.cut_in_time", safety.cut_in_time),
+            ("safety.lateral_margin", safety.lateral_margin),
             ("safety.follower_response", safety.follower_response),
         ] {
             if !(value.is_finite() && value >= 0.0) {
@@ -575,6 +577,17 @@ fn field_around(scene: &Scene, id: VehicleId, params: &FieldParams, one_sided: b
     Field::new(*params, scene.vehicle.width, obstacles, lines)
 }
 
+/// Where Y_p may go (low, high; m): between the centres of the lane the car is in
+/// (`from`) and the one it keeps or changes to (`to`), widened by the lane-keeping bound;
+/// a preview point outside that band (an aborted change, an offset the field asked for)
+/// moves back into it by at least `max_step` a period, the pace of a lane change. So no
+/// plan drifts away from both lanes, and every offset is pulled back, never amplified.
+fn lane_band(from: f64, to: f64, previous_preview: f64, params: &MpcParams) -> (f64, f64) {
+    let low = from.min(to) - params.lane_keeping_bound;
+    let high = from.max(to) + params.lane_keeping_bound;
+    (low.min(previous_preview + params.max_step), high.max(previous_preview - params.max_step))
+}
+
 /// Plans Y_p toward `target` lane for car `id`, driven by `setup` with `memory`, at
 /// acceleration `accel` (held from now) with `mpc`.
 pub fn plan_motion(
@@ -608,12 +621,8 @@ fn plan_motion_with(
     let rightmost = road.lane_center(LaneId(road.lane_count() as u32 - 1));
     let margin = mpc_params.preview_margin;
     let previous_preview = memory.preview.unwrap_or(car.preview);
-    let mut preview_bounds = (rightmost - margin.min(w), margin.min(w));
-    if keeping.is_some() {
-        let (centre, bound) = (road.lane_center(target), mpc_params.lane_keeping_bound);
-        let (low, high) = ((centre - bound).min(previous_preview), (centre + bound).max(previous_preview));
-        preview_bounds = (preview_bounds.0.max(low), preview_bounds.1.min(high));
-    }
+    let band = lane_band(road.lane_center(car.lane), road.lane_center(target), previous_preview, mpc_params);
+    let preview_bounds = ((rightmost - margin.min(w)).max(band.0), margin.min(w).min(band.1));
     let problem = MpcProblem {
         state: car.state,
         accel,
@@ -787,6 +796,10 @@ pub fn plan(scene: &Scene, id: VehicleId, setup: &GtSetup, memory: &GtMemory, mp
     let mut mpc_params = params.mpc;
     if let Some(duration) = decision.duration.filter(|&t| t < LANE_CHANGE_DURATION) {
         mpc_params.max_step *= LANE_CHANGE_DURATION / duration;
+    }
+    let previous_preview = memory.preview.unwrap_or(car.preview);
+    if target == car.lane && (previous_preview - scene.road.lane_center(target)).abs() > params.mpc.lane_keeping_bound {
+        mpc_params.max_step = mpc_params.max_step.max(params.mpc.return_step);
     }
     // Out of emergency braking (a command past the games' firmest), the brake is let go at
     // once to the games' firmest; from there the command ramps at the jerk bound, as any.

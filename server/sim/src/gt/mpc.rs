@@ -57,10 +57,20 @@ pub struct MpcParams {
     /// so the car keeps within 0.5 m of its lane's centre.
     #[serde(default = "default_lane_keeping_bound")]
     pub lane_keeping_bound: f64,
+    /// Delta u_max (m per step) while the preview point comes back to the lane it keeps
+    /// from beyond `lane_keeping_bound` (a lane change given up). 0.3, chosen here: twice
+    /// `max_step`, since at a lane change's pace the change's sideways momentum carried
+    /// the car past the line it had turned back from (a trace of dense on-ramp traffic).
+    #[serde(default = "default_return_step")]
+    pub return_step: f64,
 }
 
 fn default_lane_keeping_bound() -> f64 {
     MpcParams::default().lane_keeping_bound
+}
+
+fn default_return_step() -> f64 {
+    MpcParams::default().return_step
 }
 
 impl Default for MpcParams {
@@ -76,6 +86,7 @@ impl Default for MpcParams {
             preview_margin: 2.0,
             min_speed: 2.0,
             lane_keeping_bound: 0.3,
+            return_step: 0.3,
         }
     }
 }

@@ -46,6 +46,11 @@ pub struct SafetyParams {
     /// a lane change, which crosses the line after 2 s. A car moving sideways towards the
     /// centre of its own target lane (settling into it) is projected no farther than it.
     pub cut_in_time: f64,
+    /// mu of RSS's lateral safe distance (m): a car in a lane the AV leaves stops counting
+    /// once the AV's body is this far beside its body (as far as that reaches within
+    /// `cut_in_time`), even before the AV is out of the lane. 0.5, chosen here: an eighth
+    /// of a lane, more than the driver model's overshoot of a steady preview point.
+    pub lateral_margin: f64,
     /// The hardest braking (m/s^2) a gap may ask of anyone (the AV behind the car ahead,
     /// the car behind the AV) for the AV to start a lane change into it on the open road
     /// (`gap_braking`). 2: MOBIL's b_safe, the braking a lane change may impose on the new
@@ -72,6 +77,7 @@ impl Default for SafetyParams {
             emergency_brake: 8.0,
             margin: 1.0,
             cut_in_time: 1.0,
+            lateral_margin: 0.5,
             gap_braking: 2.0,
             follower_response: 1.0,
         }
@@ -202,8 +208,16 @@ pub fn safe_accel(
     super::bisect(floor, accel, keeps).0
 }
 
+/// How far short of a car `gap` m ahead emergency braking stops: the margin, but at most
+/// half the gap left. Within the margin RSS's proper response is braking at a_min,brake
+/// (the games' firmest); giving up none of a gap already short (`kept`) made a car
+/// creeping up a queue stop at 8 m/s^2 for a few centimetres.
+fn standoff(gap: f64, params: &SafetyParams) -> f64 {
+    params.margin.min(gap / 2.0)
+}
+
 /// The braking (m/s^2, more than `firm`, at most the emergency braking) that keeps a car
-/// at `speed` `kept` short of a car `gap` m ahead at `lead_speed` holding its braking
+/// at `speed` `standoff` short of a car `gap` m ahead at `lead_speed` holding its braking
 /// `lead_brake` (>= 0) over the next `horizon` s, if braking at `firm` would not.
 pub fn emergency_brake(
     speed: f64,
@@ -213,7 +227,7 @@ pub fn emergency_brake(
 ) -> Option<f64> {
     let short = |brake: f64| {
         let rear = Braking { speed, accel: -brake, hold: 0.0, brake };
-        least_gap(rear, lead_speed, lead_brake, gap, horizon) < kept(gap, params)
+        least_gap(rear, lead_speed, lead_brake, gap, horizon) < standoff(gap, params)
     };
     if !short(firm) {
         return None;
@@ -253,16 +267,33 @@ fn in_lanes_by_body(scene: &Scene, other: &Car, lanes: &[LaneId], params: &Safet
         return true;
     }
     let road = &scene.road;
-    let state = &other.state;
-    let lateral_speed = state.vx * state.heading.sin() + state.vy * state.heading.cos();
-    let later = settling(state.d + lateral_speed * params.cut_in_time, state.d, road.lane_center(other.target_lane));
+    let (now, later) = reach(scene, other, params);
     let half = scene.vehicle.width / 2.0;
-    let (low, high) = (state.d.min(later) - half, state.d.max(later) + half);
+    let (low, high) = (now.min(later) - half, now.max(later) + half);
     let half_lane = road.lane_width() / 2.0;
     lanes.iter().any(|&lane| {
         let centre = road.lane_center(lane);
         low < centre + half_lane && high > centre - half_lane
     })
+}
+
+/// Whether car `other` is beside car `me`, not ahead: level with it along the road, its
+/// body (as far as it reaches within the cut-in time) more than `lateral_margin` beside
+/// `me`'s. No braking answers a car beside (at -8 m/s^2 the AV only fell back level with a
+/// slower one); a lane change towards it is given up instead (`driver::gives_up`).
+fn beside(scene: &Scene, me: &Car, other: &Car, params: &SafetyParams) -> bool {
+    let (now, later) = reach(scene, other, params);
+    let apart = (now - me.state.d).abs().min((later - me.state.d).abs());
+    other.state.s - me.state.s < scene.vehicle.length && apart >= scene.vehicle.width + params.lateral_margin
+}
+
+/// Where car `other`'s centre is sideways now and where it gets within the cut-in time at
+/// its lateral speed (`settling` into its target lane).
+fn reach(scene: &Scene, other: &Car, params: &SafetyParams) -> (f64, f64) {
+    let state = &other.state;
+    let lateral_speed = state.vx * state.heading.sin() + state.vy * state.heading.cos();
+    let target = scene.road.lane_center(other.target_lane);
+    (state.d, settling(state.d + lateral_speed * params.cut_in_time, state.d, target))
 }
 
 /// Where a car at offset `now` moving sideways reaches `later` when it aims at `centre`
@@ -329,16 +360,32 @@ pub(super) fn follower_keeps_distance(scene: &Scene, id: VehicleId, lane: LaneId
     })
 }
 
-/// Seconds until the body of car `me`, changing lanes at full-width duration `pace`, is out
-/// of `lane`, which it leaves: what is left of the quintic path to three quarters of the
-/// way across (half a lane plus half a body) at the phase its offset shows, plus the lag
-/// for the part of that still to go (as `merge` times a crossing).
-fn time_out_of(scene: &Scene, me: &Car, lane: LaneId, intent: &Intent) -> f64 {
+/// Seconds until the body of car `me`, changing lanes at full-width duration `pace`, no
+/// longer shares `lane` (which it leaves) with car `other` there: until it is out of the
+/// lane (half a lane plus half a body across) or, sooner, `lateral_margin` clear of
+/// `other`'s body where that reaches within the cut-in time (RSS's lateral safe
+/// distance, Definition 6, with its margin mu: two cars apart sideways by more are not in
+/// danger, however close along the road). What is left of the quintic path to there at
+/// the phase the offset shows, plus the lag for the part still to go (as `merge` times a
+/// crossing); 0 when it is there already.
+fn time_clear_of(scene: &Scene, me: &Car, lane: LaneId, other: &Car, intent: &Intent, params: &SafetyParams) -> f64 {
     let road = &scene.road;
-    let width = road.lane_width();
-    let out = (width + scene.vehicle.width) / (2.0 * width);
-    let done = ((me.state.d - road.lane_center(lane)).abs() / width).min(out);
-    (merge::phase(out) - merge::phase(done)) * intent.pace + intent.lag * (1.0 - done / out)
+    let (width, body) = (road.lane_width(), scene.vehicle.width);
+    let from = road.lane_center(lane);
+    let away = match me.state.d - from {
+        off if off.abs() > 1e-9 => off.signum(),
+        _ => (road.lane_center(intent.target) - from).signum(),
+    };
+    let out = (width + body) / (2.0 * width);
+    // The side of `other`'s reach nearest the AV, in lane widths from the lane's centre.
+    let (now, later) = reach(scene, other, params);
+    let nearest = away * (if away > 0.0 { now.max(later) } else { now.min(later) } - from) / width;
+    let clear = out.min(nearest + (body + params.lateral_margin) / width);
+    let done = (away * (me.state.d - from) / width).clamp(0.0, out);
+    if done >= clear {
+        return 0.0;
+    }
+    (merge::phase(clear) - merge::phase(done)) * intent.pace + intent.lag * (1.0 - done / clear)
 }
 
 /// The acceleration the layer lets car `id` apply instead of the game's, when it is lower.
@@ -352,7 +399,6 @@ pub fn limit(scene: &Scene, id: VehicleId, intent: &Intent, params: &SafetyParam
     let speed = me.speed().max(0.0);
     let taken = lanes_taken(scene, me, intent.target);
     let leaving: Vec<LaneId> = taken.iter().copied().filter(|&lane| lane != intent.target).collect();
-    let until_out = leaving.iter().map(|&lane| time_out_of(scene, me, lane, intent)).fold(0.0, f64::max);
     let length = scene.vehicle.length;
     // Farther ahead than this, even a stopped car is beyond RSS's distance.
     let (_, fastest) = travel(speed, intent.accel.max(0.0), params.response_time);
@@ -362,10 +408,18 @@ pub fn limit(scene: &Scene, id: VehicleId, intent: &Intent, params: &SafetyParam
         if other.id == id || other.state.s <= me.state.s {
             continue;
         }
-        let horizon = if in_lanes(scene, other, &[intent.target], params) {
+        let horizon = if beside(scene, me, other, params) {
+            continue;
+        } else if in_lanes(scene, other, &[intent.target], params) {
             f64::INFINITY
         } else if in_lanes_by_body(scene, other, &leaving, params) {
-            until_out
+            let shared = leaving.iter().filter(|&&lane| in_lanes_by_body(scene, other, &[lane], params));
+            let until_clear =
+                shared.map(|&lane| time_clear_of(scene, me, lane, other, intent, params)).fold(0.0, f64::max);
+            if until_clear <= 0.0 {
+                continue;
+            }
+            until_clear
         } else {
             continue;
         };

@@ -703,6 +703,36 @@ fn during_its_lane_change_the_av_keeps_its_distance_in_both_lanes_until_it_has_l
 }
 
 #[test]
+fn a_car_in_the_lane_the_av_leaves_stops_counting_once_the_av_is_beside_it() {
+    // A trace of dense traffic: most of the AV's braking past -6 m/s^2 with nothing in its
+    // path was for a slower car a few metres ahead in the lane it was leaving, its body
+    // already 0.5-1 m beside that car's, moving away. Past RSS's lateral margin (0.5 m
+    // between bodies) the car is no danger; overlapping it, it still is.
+    for across in [2.5, 2.7, 2.9, 3.2] {
+        for (gap, speed) in [(2.0, 20.0), (3.0, 15.0), (5.0, 10.0)] {
+            let s = 100.0 + 5.0 + gap;
+            let leaving = |v: &mut Vehicle| {
+                v.state.d = -across;
+                v.target_lane = LaneId(1);
+            };
+            let (mut world, ec, _) = ec_and((0, s, speed), |_| {});
+            leaving(world.vehicle_mut(ec));
+            let limited = safety_limit(&mut world, ec, 1, 0.0);
+            assert_eq!(limited, None, "{across} m across, {gap} m behind a car at {speed} m/s");
+            if across >= 3.0 {
+                continue; // out of the lane: that lane is no lane of the AV's any more
+            }
+            // The same car half a metre over its lane's line: its body and the AV's overlap.
+            let (mut world, ec, other) = ec_and((0, s, speed), |v| v.state.d = -(across - 1.5));
+            leaving(world.vehicle_mut(ec));
+            let limited = safety_limit(&mut world, ec, 1, 0.0)
+                .unwrap_or_else(|| panic!("{across} m across, {gap} m behind a car at {speed} m/s: not counted"));
+            assert_eq!(limited.car, other, "{across} m across, {gap} m behind a car at {speed} m/s");
+        }
+    }
+}
+
+#[test]
 fn the_av_brakes_harder_than_the_games_allow_only_when_a_collision_is_otherwise_certain() {
     // On a one-lane road (no way out sideways), 20 m behind a car as fast that brakes at
     // 6 m/s^2: the games' -4 would hit it.
@@ -727,6 +757,27 @@ fn the_av_brakes_harder_than_the_games_allow_only_when_a_collision_is_otherwise_
     // The same car holding its speed: no emergency.
     let (mut world, ec, _) = ec_and((0, 125.0, 25.0), |_| {});
     assert!(safety_limit(&mut world, ec, 0, 0.0).is_none_or(|limited| !limited.emergency));
+}
+
+#[test]
+fn creeping_up_a_queue_within_the_margin_the_av_stops_at_the_games_braking() {
+    // A trace of dense traffic: creeping at under 1 m/s up to a stopped car 1 m ahead (the
+    // margin), the AV stopped at -7 to -8 m/s^2 rather than give up a few centimetres.
+    let firm = -GtParams::default().decision.game.accel_min;
+    for (gap, speed) in [(1.0, 0.8), (0.9, 1.5), (0.6, 1.0), (0.5, 1.2)] {
+        let (mut world, ec, other) = ec_and((0, 100.0 + 5.0 + gap, 0.0), |_| {});
+        world.vehicle_mut(ec).state.vx = speed;
+        let limited = safety_limit(&mut world, ec, 0, 0.0).expect("a stopped car within the margin counts");
+        assert_eq!(limited.car, other);
+        assert!(limited.accel >= -firm - 1e-9 && !limited.emergency, "{gap} m at {speed} m/s: {limited:?}");
+    }
+    // Closing fast on what is left, it still brakes as hard as it must.
+    for (gap, speed) in [(0.5, 3.0), (0.2, 2.0)] {
+        let (mut world, ec, _) = ec_and((0, 100.0 + 5.0 + gap, 0.0), |_| {});
+        world.vehicle_mut(ec).state.vx = speed;
+        let limited = safety_limit(&mut world, ec, 0, 0.0).expect("a stopped car within the margin counts");
+        assert!(limited.emergency, "{gap} m at {speed} m/s: {limited:?}");
+    }
 }
 
 #[test]
@@ -925,6 +976,40 @@ fn an_offset_is_pulled_back_to_the_centre_never_amplified() {
             assert!(keeping && world.vehicle(VehicleId(0)).target_lane == LaneId(1), "{speed} {start}");
             assert!(worst <= start.abs() + 0.05, "{speed} m/s from {start} m: out to {worst:.2} m");
             assert!(last < 0.1, "{speed} m/s from {start} m: still {last:.2} m off after 10 s");
+        }
+    }
+}
+
+#[test]
+fn a_lane_change_never_steers_away_from_both_its_lanes() {
+    // A trace of dense traffic: changing from lane 1 to lane 2, the AV's plan was pushed
+    // by a car coming into lane 1 from behind on the right until its preview point was
+    // 1.8 m left of lane 1's centre, away from both lanes. Between the two centres (and
+    // the lane-keeping bound beyond them) the plan may go where the field asks; no
+    // farther, and from farther it comes back at a lane change's pace.
+    let road = fast_road(3);
+    let (from, to) = (road.lane_center(LaneId(1)), road.lane_center(LaneId(2)));
+    let bound = GtParams::default().mpc.lane_keeping_bound;
+    for style in Style::ALL {
+        for (behind, across) in [(3.0, -6.0), (6.0, -6.5), (10.0, -5.5), (0.0, -6.8)] {
+            for previous in [from + bound, from + 1.0] {
+                let cars = [
+                    ("av", 1, 200.0, 20.0, style, gt(Game::Nash, Role::Leader)),
+                    ("pusher", 2, 200.0 - behind, 24.0, Style::Normal, scripted(&road, 1, 0.0)),
+                ];
+                let mut world = world_with(road.clone(), &cars);
+                world.vehicle_mut(VehicleId(1)).state.d = across;
+                let av = world.vehicle_mut(VehicleId(0));
+                av.target_lane = LaneId(2);
+                av.command.preview = previous;
+                let step = plan_of(&mut world, VehicleId(0));
+                let allowed = (from + bound).max(previous - GtParams::default().mpc.max_step);
+                assert!(
+                    step.command.preview <= allowed + 1e-9 && step.command.preview >= to - bound - 1e-9,
+                    "{style:?}, a car {behind} m behind at {across} m, from {previous:.2}: preview {:.2}",
+                    step.command.preview
+                );
+            }
         }
     }
 }

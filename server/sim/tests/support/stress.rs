@@ -25,9 +25,16 @@ pub const HARD_BRAKING: f64 = -6.0;
 /// modified TTC of Ozbay et al. 2008): a car ahead that brakes closes the gap sooner than
 /// its speed alone says.
 pub const PHANTOM_TTC: f64 = 2.0;
-/// A gt car further than this (m) from its target lane's centre, in that lane, with the
-/// target unchanged for `LANE_CHANGE_DURATION` of lane-change time (paced as a lane
-/// change's path is, below `FULL_PACE_SPEED`), drifts outside a lane change.
+/// A car whose body is less than this (m) beside the gt car's is in its path, whatever
+/// lanes their centres are in (RSS's lateral margin mu; a gt car leaving a lane still
+/// sweeps part of it).
+pub const PATH_MARGIN: f64 = 0.5;
+/// A gt car further than this (m) from its target lane's centre, in that lane, drifts
+/// outside a lane change: once its target has been unchanged for `LANE_CHANGE_DURATION`
+/// of lane-change time (paced as a lane change's path is, below `FULL_PACE_SPEED`) and
+/// its centre crossed into the lane at least half of that before (the second half of a
+/// lane change's path, from the line to the centre: a change held up before the line
+/// still settles after it).
 pub const DRIFT_BOUND: f64 = 0.5;
 /// A replay starts from the world this long (s) before the collision it replays...
 pub const REPLAY_LEAD: f64 = 1.0;
@@ -292,6 +299,11 @@ struct Track {
     /// Lane-change time since then: simulated time at the pace a lane change's path keeps
     /// (`FULL_PACE_SPEED`): a car stopped in a queue halfway across is still changing.
     paced_since_target: f64,
+    /// The same clock since its centre last crossed into its target lane (finishing a
+    /// change, or coming back from one given up past the line).
+    paced_since_crossing: f64,
+    /// The lane its centre was in at the last sample.
+    here: Option<LaneId>,
     /// The lane change under way (from, to) until its centre crosses into `to`.
     change: Option<(LaneId, LaneId)>,
     /// Each lane change it began: when, and the lane it left.
@@ -311,6 +323,8 @@ impl Track {
             target: world.vehicle(id).target_lane,
             target_since: f64::NEG_INFINITY,
             paced_since_target: f64::INFINITY,
+            paced_since_crossing: f64::INFINITY,
+            here: None,
             change: None,
             begun: Vec::new(),
             hard_braking: false,
@@ -349,9 +363,16 @@ impl Track {
         if self.change.is_some_and(|(_, to)| here == Some(to)) {
             self.change = None;
         }
-        let period = world.params().control_dt;
-        self.paced_since_target += period * (vehicle.state.lane_speed() / FULL_PACE_SPEED).clamp(0.0, 1.0);
-        if here == Some(self.target) && self.paced_since_target >= LANE_CHANGE_DURATION - 1e-9 {
+        if here == Some(self.target) && self.here.is_some_and(|before| before != self.target) {
+            self.paced_since_crossing = 0.0;
+        }
+        self.here = here;
+        let paced = world.params().control_dt * (vehicle.state.lane_speed() / FULL_PACE_SPEED).clamp(0.0, 1.0);
+        self.paced_since_target += paced;
+        self.paced_since_crossing += paced;
+        let settled = self.paced_since_target >= LANE_CHANGE_DURATION - 1e-9
+            && self.paced_since_crossing >= LANE_CHANGE_DURATION / 2.0 - 1e-9;
+        if here == Some(self.target) && settled {
             let offset = (vehicle.state.d - road.lane_center(self.target)).abs();
             self.max_drift = self.max_drift.max(offset);
             if offset > DRIFT_BOUND && !self.drift {
@@ -415,7 +436,8 @@ impl Track {
 
 /// Whether something is in or entering gt car `id`'s path (the lane it is in and its
 /// target lane) within `PHANTOM_TTC` of time to collision ahead of it, or level with it:
-/// a car whose centre, target lane or body (straddling a lane line) is in the path, or
+/// a car whose centre, target lane or body (straddling a lane line) is in the path, whose
+/// body is within `PATH_MARGIN` beside the gt car's, or
 /// that moves sideways towards the gt car faster than `DRIFT_SPEED` from within one and a
 /// half lane widths of it; or the end of a lane of the path, as a stopped car.
 pub fn threatened(world: &World, id: VehicleId) -> bool {
@@ -462,7 +484,8 @@ fn in_path(world: &World, id: VehicleId) -> Vec<(Option<VehicleId>, f64, f64, f6
             lateral_speed * (d - state.d).signum() > DRIFT_SPEED && (d - state.d).abs() < 1.5 * road.lane_width();
         let reach = 0.5 * (road.lane_width() + world.vehicle_params().width);
         let body_in = path.iter().any(|&lane| (state.d - road.lane_center(lane)).abs() < reach);
-        let entering = path.contains(&lane) || path.contains(&other.target_lane) || towards || body_in;
+        let beside = (state.d - d).abs() < world.vehicle_params().width + PATH_MARGIN;
+        let entering = path.contains(&lane) || path.contains(&other.target_lane) || towards || body_in || beside;
         let lead_accel = if state.lane_speed() > 0.0 { other.command.accel } else { 0.0 };
         entering.then(|| (Some(VehicleId(j as u32)), state.s - s - length, speed - state.lane_speed(), lead_accel))
     });

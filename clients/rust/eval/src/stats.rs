@@ -7,9 +7,10 @@
 //! ignore a few extreme episodes by construction.
 //!
 //! The bootstrap draws from a seeded ChaCha stream, so the same episodes give the same
-//! interval ends on every run and machine. Point estimates equal rliable's; interval ends
-//! agree with rliable's within Monte Carlo error (tests against a fixture rliable computed,
-//! `scripts/rliable-fixture`).
+//! interval ends on every run and machine. Point estimates equal rliable's (but for the
+//! probability of improvement's rounding ties, `crate::tie`, which rliable counts as a
+//! win or a loss); interval ends agree with rliable's within Monte Carlo error (tests
+//! against a fixture rliable computed, `scripts/rliable-fixture`).
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;

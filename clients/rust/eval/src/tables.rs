@@ -67,7 +67,6 @@ fn difference_cell(figure: &Figure, d: &Difference) -> String {
 
 fn improvement_cell(d: &Difference) -> String {
     match d.improvement {
-        None if d.distinct == 1 => "deterministic".into(),
         None => "-".into(),
         Some(i) if i.low == i.high => format!("{:.2}", i.value),
         Some(i) => format!("{:.2} [{:.2}, {:.2}]", i.value, i.low, i.high),

@@ -75,7 +75,9 @@ def plot_rates(result, scenario, path):
         success = dict(s["figures"])["success"]
         if s["distinct"] > 1 and success["n"]:
             ax.errorbar(
-                success["mean"], i, xerr=[[success["mean"] - success["low"]], [success["high"] - success["mean"]]],
+                # max(0, ...): at 0 % or 100 % an end can sit a rounding error beyond the mean.
+                success["mean"], i,
+                xerr=[[max(0.0, success["mean"] - success["low"])], [max(0.0, success["high"] - success["mean"])]],
                 color="black", capsize=5, linewidth=1.5,
             )
         note = f"{s['episodes']} episodes" + (", 1 distinct: no interval" if s["distinct"] == 1 and s["episodes"] > 1 else "")
@@ -120,7 +122,12 @@ def plot_crossplay(crossplay, scenario, figure, path):
     for i in range(len(policies)):
         for j in range(len(opponents)):
             ax.text(j, i, labels[i][j], ha="center", va="center", fontsize=8)
-    colours = "0 % red to 100 % green" if rate else "this matrix's worst (red) to best (green)"
+    if not rate:
+        colours = "this matrix's worst (red) to best (green)"
+    elif figure in LOWER_IS_BETTER:
+        colours = "0 % green to 100 % red (lower is better)"
+    else:
+        colours = "0 % red to 100 % green"
     ax.set_title(
         f"{scenario}: {figure}, policy (rows) against opponents (columns)\n"
         f"colour: {colours}; framed: the interval overlaps the best cell's",

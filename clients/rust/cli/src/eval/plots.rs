@@ -240,10 +240,12 @@ pub fn crossplay(
     let heading = FIGURES.iter().find(|f| f.key == figure).map_or(figure, |f| f.heading);
     let title = format!("{scenario}: {heading}, policy (rows) against opponents (columns)");
     root.draw_text(&title, &("sans-serif", 20).into_font().color(&BLACK), (10, 10))?;
-    let scale =
-        if rate { "colour: 0 % red to 100 % green" } else { "colour: this matrix's worst (red) to best (green)" };
-    let worse = if better_high { "" } else { ", inverted: lower is better" };
-    let legend = format!("{scale}{worse}; framed: the interval overlaps the best cell's");
+    let scale = match (rate, better_high) {
+        (true, true) => "colour: 0 % red to 100 % green",
+        (true, false) => "colour: 0 % green to 100 % red (lower is better)",
+        (false, _) => "colour: this matrix's worst (red) to best (green)",
+    };
+    let legend = format!("{scale}; framed: the interval overlaps the best cell's");
     root.draw_text(&legend, &text, (10, 38))?;
     for (col, name) in headings.iter().enumerate() {
         root.draw_text(name, &text, (left + cell_w * col as i32 + 8, top - 24))?;

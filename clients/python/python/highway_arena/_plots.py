@@ -61,7 +61,9 @@ def plot_rates(result, scenario, path):
     only stops shows as time-out), with the success rate's Wilson interval where its
     episodes are not all one (one distinct episode has no interval)."""
     summaries = [s for s in result.summaries if s["scenario"] == scenario]
-    fig, ax = plt.subplots(figsize=(11, _height(len(summaries)) + 0.8))
+    # Room for the longest name left of the bars and the episode counts right of them.
+    longest = max((len(s["policy"]) for s in summaries), default=10)
+    fig, ax = plt.subplots(figsize=(9 + 0.09 * longest, _height(len(summaries)) + 0.8))
     rows = range(len(summaries))
     left = [0.0] * len(summaries)
     for key, label, colour in OUTCOMES:
@@ -83,11 +85,11 @@ def plot_rates(result, scenario, path):
         note = f"{s['episodes']} episodes" + (", 1 distinct: no interval" if s["distinct"] == 1 and s["episodes"] > 1 else "")
         ax.text(1.02, i, note, va="center", fontsize=9, transform=ax.get_yaxis_transform())
     ax.set_yticks(list(rows), [s["policy"] for s in summaries])
-    ax.invert_yaxis()
+    ax.set_ylim(len(summaries) - 0.5, -0.5)  # the first policy on top, no empty margin
     ax.set_xlim(0, 1)
     ax.xaxis.set_major_formatter(lambda v, _: f"{100 * v:.0f} %")
-    ax.legend(ncols=len(OUTCOMES), loc="lower left", bbox_to_anchor=(0, 1.0), fontsize=9, frameon=False)
-    ax.set_title(f"{scenario}: how the episodes ended (bar: success's 95 % interval)", pad=28)
+    ax.legend(ncols=3, loc="lower left", bbox_to_anchor=(0, 1.0), fontsize=9, frameon=False)
+    ax.set_title(f"{scenario}: how the episodes ended (bar: success's 95 % interval)", pad=40)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

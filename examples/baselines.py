@@ -8,9 +8,11 @@ over the same seeds (highway_arena.evaluate), writing the tables and plots.
     python examples/baselines.py --scenario merge-random --episodes 50 --out out/baselines
     python examples/baselines.py --scenario merge-random --ppo ppo-merge.zip   # needs stable-baselines3
 
-Launches its own arena-server (or --connect ENDPOINT). The expert episodes use seeds from
-100 000 on, the evaluation seeds from --seed (default 0): the learned policies are
-measured on episodes they never saw.
+Launches its own arena-server (or --connect ENDPOINT). The expert episodes use the seeds
+recording starts at by default (highway_arena.RECORD_SEED, 1 000 000 on), the evaluation
+seeds from --seed (default 0): the learned policies are measured on episodes they never
+saw. The BC fitted here is league/fit_bc.py's (the same episodes, the same fit), so its
+row equals the league's (league/league.md).
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ def main() -> None:
         started = time.perf_counter()
         with tempfile.TemporaryDirectory() as datasets:
             dataset = highway_arena.record(
-                args.scenario, args.expert_episodes, expert="expert", seed=100_000, path=datasets, connect=connect
+                args.scenario, args.expert_episodes, expert="expert", path=datasets, connect=connect
             )
             bc = highway_arena.bc.fit(dataset, seed=0)
         print(f"BC fitted to {args.expert_episodes} expert episodes in {time.perf_counter() - started:.0f} s")

@@ -6,9 +6,10 @@ and after training (highway_arena.evaluate, on seeds training never used).
     pip install -r examples/requirements-ppo.txt     # stable-baselines3 and torch
     python examples/ppo_highway.py --scenario merge --timesteps 20000
 
-Launches its own arena-server (or use --connect ENDPOINT for a running one). Rewards lie
-in [-10, 1] per step (plus overtake's goal bonus of 50 once) and a crash costs about
--(1 + 10) x the episode length (docs/rewards.md: the risk term, the goal bonus), so PPO
+Launches its own arena-server (or use --connect ENDPOINT for a running one). A step the
+learner survives earns within [-w - b, 1 + b], with the risk weight w = 10 and the goal
+bonus b = 0 (overtake: 15 and 50), and a crash -((1 + w) x the episode length + 2b)
+(docs/rewards.md: the risk term, the goal bonus), so PPO
 learns on rewards scaled by the running spread of returns (SB3's VecNormalize, rewards
 only; --no-normalize turns it off), with an entropy bonus of 0.01 (without it PPO stops
 short of merge-random's lane end). The league's checkpoints were made so:

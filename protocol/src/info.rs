@@ -225,7 +225,7 @@ pub const SCHEMA: [(&str, InfoKind); 26] = [
 pub const EXPERT_ACTION: &str = "expert_action";
 /// The AV's planned acceleration (m/s^2).
 pub const EXPERT_ACCEL: &str = "expert_accel";
-/// The AV's lane-change decision σ: -1 right, 0 keep, 1 left.
+/// The AV's lane-change decision σ: -1 left, 0 keep, 1 right (`LaneChange::sigma`, the paper's σ).
 pub const EXPERT_SIGMA: &str = "expert_sigma";
 
 /// The keys `expert` adds after `SCHEMA`, in order (`EXPERT_ACTION` is `I64` for meta

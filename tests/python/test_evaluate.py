@@ -57,6 +57,25 @@ def test_results_are_written_with_plots(tmp_path):
     assert len((tmp_path / "episodes.csv").read_text().splitlines()) == 1 + 4
 
 
+def test_a_deterministic_scenario_gets_values_without_intervals_marks_or_probabilities(tmp_path):
+    # merge has no randomness: every seed gives each built-in driver the same episode.
+    result = highway_arena.evaluate(["expert", "idm"], "merge", episodes=5, bootstrap=200, out=tmp_path, quiet=True)
+    differences = result.difference("merge", "idm")
+    # One distinct pair, or none where a figure does not apply (IDM changes no lane).
+    assert all(d["distinct"] in (0, 1) and not d["significant"] for d in differences.values()), differences
+    assert all(d["improvement"] is None for d in differences.values()), differences
+    assert differences["return"]["difference"]["low"] == differences["return"]["difference"]["high"]
+    assert "| merge | idm | 5 (deterministic: 1 distinct pair) |" in result.markdown, result.markdown
+    assert "| **" not in result.markdown, result.markdown
+    success = result.summary("merge", "expert")["success"]
+    assert (success["low"], success["high"]) == (1.0, 1.0), "no Wilson interval from one distinct episode"
+    # IDM stops short of merge's lane end: no crash, no success, and the rates plot shows it.
+    summary = next(s for s in result.summaries if s["policy"] == "idm")
+    assert dict(summary["outcomes"]) == {
+        "success": 0.0, "collision": 0.0, "off_road": 0.0, "lane_end": 0.0, "no_success": 1.0,
+    }, summary["outcomes"]
+
+
 def test_each_policy_is_timed_by_the_clock_of_the_process_that_runs_it():
     calls = []
 
@@ -126,6 +145,8 @@ def test_cross_play_gives_the_matrices_arena_eval_writes(server, tmp_path):
     assert ours.crossplay.markdown.replace("| keep |", "| idle |") in cli, f"python:\n{ours.crossplay.markdown}"
     success = ours.crossplay.matrix("merge", "success")
     assert len(success) == 7 and set(success.values()) == {0.0}, success
+    # Every cell equals the best (0 %, one distinct episode each): all are near it.
+    assert all(c[8] for c in ours.crossplay.cells if c[1] == "success"), ours.crossplay.cells
     written = ours.write(tmp_path / "py")
     assert str(tmp_path / "py" / "crossplay_merge_return.png") in written
     with pytest.raises(ValueError, match="no opponents"):

@@ -433,8 +433,9 @@ fn crossplay_opponents() -> Vec<(String, Vec<(String, String)>)> {
 }
 
 /// A cell of a cross-play matrix as Python gets it: (scenario, figure, policy, opponent,
-/// value, low, high, one distinct episode), the numbers `None` where no episode applies.
-type CrossplayCell = (String, String, String, String, Option<f64>, Option<f64>, Option<f64>, Option<bool>);
+/// value, low, high, one distinct episode, whether its interval overlaps the best cell's
+/// (`crossplay::near_best`)), the numbers `None` where no episode applies.
+type CrossplayCell = (String, String, String, String, Option<f64>, Option<f64>, Option<f64>, Option<bool>, bool);
 
 /// The cross-play matrices of evaluated episodes (`rows` as `eval_report` takes them, each
 /// policy named `<policy> vs <opponent>`): their Markdown and every cell.
@@ -451,23 +452,25 @@ fn crossplay_report(
     let bootstrap = Bootstrap { reps: bootstrap.unwrap_or(Bootstrap::default().reps), ..Bootstrap::default() };
     let settings = eval::Settings { reference: None, bootstrap };
     let summaries = eval::summarise(&episodes, &settings).map_err(PyValueError::new_err)?;
+    let opponents = crossplay::opponents();
     let mut cells = Vec::new();
     for scenario in &scenarios {
         for figure in crossplay::MATRIX_FIGURES {
-            for policy in &policies {
-                for opponent in crossplay::opponents() {
-                    let cell = crossplay::cell(&summaries, scenario, policy, &opponent.name, figure);
-                    cells.push((
-                        scenario.clone(),
-                        figure.to_string(),
-                        policy.clone(),
-                        opponent.name,
-                        cell.map(|c| c.value),
-                        cell.map(|c| c.low),
-                        cell.map(|c| c.high),
-                        cell.map(|c| c.one_distinct),
-                    ));
-                }
+            let matrix = crossplay::matrix(&summaries, scenario, &policies, figure);
+            let near = crossplay::near_best(&matrix, figure);
+            let names = policies.iter().flat_map(|p| opponents.iter().map(move |o| (p, o)));
+            for (((policy, opponent), cell), near) in names.zip(matrix).zip(near) {
+                cells.push((
+                    scenario.clone(),
+                    figure.to_string(),
+                    policy.clone(),
+                    opponent.name.clone(),
+                    cell.map(|c| c.value),
+                    cell.map(|c| c.low),
+                    cell.map(|c| c.high),
+                    cell.map(|c| c.one_distinct),
+                    near,
+                ));
             }
         }
     }

@@ -103,7 +103,8 @@ class Evaluation:
 class Crossplay:
     """The cross-play matrices: ``markdown`` (as ``arena eval --opponents`` writes
     crossplay.md) and ``cells``, one (scenario, figure, policy, opponent, value, low, high,
-    one distinct episode) per cell, the numbers None where no episode applies."""
+    one distinct episode, near the best: its interval overlaps the best cell's) per cell, the
+    numbers None where no episode applies."""
 
     markdown: str
     cells: list

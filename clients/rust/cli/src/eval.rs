@@ -2,7 +2,7 @@
 //! rates with Wilson intervals, other figures as median and IQM with bootstrap intervals,
 //! and every policy's paired differences from a reference policy (`arena_eval`),
 //! printed as tables and written as Markdown, CSV and JSON with box plots of the paper's
-//! cost components and bar charts of success and collision rates. Built-in drivers (`gt:...`, `expert`,
+//! cost components and bars of how the episodes ended. Built-in drivers (`gt:...`, `expert`,
 //! `idm`) run in the server (the env's `policy` option); `idle` and `random` act here.
 
 use std::path::{Path, PathBuf};
@@ -415,7 +415,8 @@ fn markdown_document(args: &EvalArgs, summaries: &[Summary]) -> String {
          middle half) over the episodes where the figure applies, with 95 % percentile intervals from {} bootstrap \
          resamples (seed 0), as rliable computes them; the mean and its t interval are in results.csv and \
          results.json. \"(1 distinct)\": every episode came out the same, so there is nothing to put an \
-         interval on. docs/evaluation.md says how to read each table.\n\n",
+         interval on; differences and probabilities of improvement are computed on the distinct pairs, and one \
+         distinct pair gets neither an interval nor a mark. docs/evaluation.md says how to read each table.\n\n",
         args.bootstrap
     ));
     for figure in eval::FIGURES {

@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 use arena_protocol::{Game, Style};
 
 use super::tables::{number, percent};
-use super::{Estimate, FIGURES, Summary};
+use super::{Better, Estimate, FIGURES, Summary, tie};
 
 /// One column of the matrices: who drives the opponents.
 #[derive(Debug, Clone, PartialEq)]
@@ -56,6 +56,13 @@ pub fn cell(summaries: &[Summary], scenario: &str, policy: &str, opponent: &str,
     Cell::of(estimate, rate, one)
 }
 
+/// The cells of `figure` on `scenario`, row by row (`policies`), each row a column per
+/// `opponents()`.
+pub fn matrix(summaries: &[Summary], scenario: &str, policies: &[String], figure: &str) -> Vec<Option<Cell>> {
+    let opponents = opponents();
+    policies.iter().flat_map(|p| opponents.iter().map(move |o| cell(summaries, scenario, p, &o.name, figure))).collect()
+}
+
 /// One cell of a matrix.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cell {
@@ -97,9 +104,31 @@ impl Cell {
     }
 }
 
+/// Whether a higher value of `figure` is better (for the colours and the best cell);
+/// figures without a better side count as higher-is-better.
+pub fn higher_is_better(figure: &str) -> bool {
+    FIGURES.iter().find(|f| f.key == figure).is_none_or(|f| f.better != Better::Lower)
+}
+
+/// Which of a matrix's `cells` cannot be told apart from its best: their intervals overlap
+/// the best cell's (the best itself included; a cell of one distinct episode, without
+/// interval, only when it equals the best within the figures' resolution).
+pub fn near_best(cells: &[Option<Cell>], figure: &str) -> Vec<bool> {
+    let sign = if higher_is_better(figure) { 1.0 } else { -1.0 };
+    let best = cells.iter().flatten().max_by(|a, b| (sign * a.value).total_cmp(&(sign * b.value)));
+    cells
+        .iter()
+        .map(|cell| match (cell, best) {
+            (Some(c), Some(b)) => tie(c.value, b.value) || (c.low <= b.high && b.low <= c.high),
+            _ => false,
+        })
+        .collect()
+}
+
 /// The matrices as Markdown: per scenario and figure, a row per policy and a column per
-/// opponent; the heading says so when every cell is one distinct episode (a deterministic
-/// scenario), whose cells have no interval.
+/// opponent, **bold** the cells whose interval overlaps the best cell's (`near_best`); the
+/// heading says so when every cell is one distinct episode (a deterministic scenario),
+/// whose cells have no interval.
 pub fn markdown(summaries: &[Summary], scenarios: &[String], policies: &[String]) -> String {
     let opponents = opponents();
     let mut out = String::new();
@@ -109,6 +138,7 @@ pub fn markdown(summaries: &[Summary], scenarios: &[String], policies: &[String]
             let mine = || summaries.iter().filter(|s| &s.scenario == scenario);
             let one = mine().next().is_some() && mine().all(|s| s.distinct == 1);
             let note = if one { " (one distinct episode per cell: no intervals)" } else { "" };
+            let note = format!("{note}; **bold**: the interval overlaps the best cell's");
             let _ = writeln!(out, "\n### {scenario}: {heading}{note}\n");
             out.push_str("| policy |");
             for opponent in &opponents {
@@ -117,11 +147,17 @@ pub fn markdown(summaries: &[Summary], scenarios: &[String], policies: &[String]
             out.push_str("\n|---|");
             out.push_str(&"---:|".repeat(opponents.len()));
             out.push('\n');
-            for policy in policies {
+            let cells = matrix(summaries, scenario, policies, figure);
+            let near = near_best(&cells, figure);
+            for (row, policy) in policies.iter().enumerate() {
                 let _ = write!(out, "| {policy} |");
-                for opponent in &opponents {
-                    let text =
-                        cell(summaries, scenario, policy, &opponent.name, figure).map_or("-".into(), |c| c.label());
+                for col in 0..opponents.len() {
+                    let k = row * opponents.len() + col;
+                    let text = match cells[k] {
+                        None => "-".into(),
+                        Some(c) if near[k] => format!("**{}**", c.label()),
+                        Some(c) => c.label(),
+                    };
                     let _ = write!(out, " {text} |");
                 }
                 out.push('\n');
@@ -129,4 +165,29 @@ pub fn markdown(summaries: &[Summary], scenarios: &[String], policies: &[String]
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rate(value: f64, low: f64, high: f64) -> Option<Cell> {
+        Some(Cell { value, low, high, one_distinct: low == high, rate: true })
+    }
+
+    #[test]
+    fn cells_whose_interval_overlaps_the_best_are_near_it() {
+        // 30 of 30 [89, 100], 28 [79, 98], 21 [52, 83], and a missing cell.
+        let cells = [rate(1.0, 0.886, 1.0), rate(0.933, 0.787, 0.982), rate(0.7, 0.521, 0.833), None];
+        assert_eq!(near_best(&cells, "success"), [true, true, false, false]);
+        // At fault: lower is better, so the best is the 0 % cell.
+        let faults = [rate(0.0, 0.0, 0.114), rate(0.3, 0.166, 0.479), rate(0.1, 0.035, 0.256)];
+        assert_eq!(near_best(&faults, "at_fault"), [true, false, true]);
+    }
+
+    #[test]
+    fn cells_without_interval_are_near_the_best_only_when_equal_to_it() {
+        let cells = [rate(1.0, 1.0, 1.0), rate(1.0 - 1e-15, 1.0 - 1e-15, 1.0 - 1e-15), rate(0.0, 0.0, 0.0)];
+        assert_eq!(near_best(&cells, "success"), [true, true, false]);
+    }
 }

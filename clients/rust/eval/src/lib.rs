@@ -203,7 +203,8 @@ pub struct Estimate {
     /// Mean (a rate for yes-or-no figures).
     pub mean: f64,
     /// Lower end of the mean's 95 % interval: Wilson's for a rate, Student's t otherwise
-    /// (kept for the CSV and JSON; a heavy-tailed figure's t interval says little).
+    /// (kept for the CSV and JSON; a heavy-tailed figure's t interval says little); the
+    /// mean itself when every episode was the same (one distinct episode).
     pub low: f64,
     /// Upper end.
     pub high: f64,
@@ -219,11 +220,22 @@ pub struct Estimate {
 pub struct Difference {
     /// Pairs.
     pub n: usize,
-    /// Policy minus reference, pair by pair, summarised: the mean of the differences for a
-    /// rate, their IQM otherwise; with its bootstrap interval over the pairs.
+    /// Distinct pairs (the two episodes of a pair the same to the bit as another pair's):
+    /// the sample the interval and the probability of improvement are computed on, since
+    /// copies of one pair are not independent draws.
+    pub distinct: usize,
+    /// Policy minus reference, pair by pair over the distinct pairs, a difference within
+    /// the figures' resolution (`tie`) counted as 0, summarised: the mean of the differences
+    /// for a rate, their IQM otherwise; with its bootstrap interval over those pairs (none,
+    /// the value alone, from one distinct pair).
     pub difference: Interval,
+    /// Whether the difference is significant: its interval, from at least two distinct
+    /// pairs, leaves out zero. What the tables mark in bold.
+    pub significant: bool,
     /// rliable's probability that the policy's figure is better than the reference's
-    /// (`stats::probability_of_improvement`), where the figure has a better side.
+    /// (`stats::probability_of_improvement`, ties within the resolution counting as equal)
+    /// over the distinct pairs' figures, where the figure has a better side and there are
+    /// at least two distinct pairs.
     pub improvement: Option<Interval>,
 }
 
@@ -245,6 +257,12 @@ pub struct Summary {
     pub reference: Option<String>,
     /// By `FIGURES` key, against `reference`.
     pub differences: Vec<(String, Difference)>,
+    /// The share of its episodes that ended in each of `OUTCOMES`, in that order (they sum
+    /// to 1).
+    pub outcomes: Vec<(String, f64)>,
+    /// Where the figures disagree on whether the policy is better than the reference
+    /// (`disagreement`): a comparison by one of them alone would mislead.
+    pub warnings: Vec<String>,
 }
 
 /// How summaries are computed.
@@ -291,6 +309,7 @@ pub fn summarise(episodes: &[Episode], settings: &Settings) -> Result<Vec<Summar
                 Some(r) => differences(&mine, &of(scenario, r), settings),
                 None => Vec::new(),
             };
+            let warnings = against.and_then(|r| disagreement(r, &differences)).into_iter().collect();
             Summary {
                 scenario: scenario.to_string(),
                 policy: policy.to_string(),
@@ -299,6 +318,8 @@ pub fn summarise(episodes: &[Episode], settings: &Settings) -> Result<Vec<Summar
                 figures,
                 reference: against.map(str::to_string),
                 differences,
+                outcomes: outcomes(&mine),
+                warnings,
             }
         })
         .collect();
@@ -310,11 +331,16 @@ fn values(episodes: &[&Episode], k: usize) -> Vec<f64> {
     episodes.iter().map(|e| e.figures[k]).filter(|v| !v.is_nan()).collect()
 }
 
+/// An episode's end and figures to the bit: two episodes with the same key are copies.
+fn bits(e: &Episode) -> (&str, Vec<u64>) {
+    (e.end_reason.as_str(), e.figures.iter().map(|v| v.to_bits()).collect())
+}
+
 /// How many of `episodes` differ in their end or in some figure's bits.
 fn distinct(episodes: &[&Episode]) -> usize {
     let mut seen: Vec<(&str, Vec<u64>)> = Vec::new();
     for e in episodes {
-        let key = (e.end_reason.as_str(), e.figures.iter().map(|v| v.to_bits()).collect());
+        let key = bits(e);
         if !seen.contains(&key) {
             seen.push(key);
         }
@@ -322,8 +348,62 @@ fn distinct(episodes: &[&Episode]) -> usize {
     seen.len()
 }
 
+/// The relative resolution of a figure: two values closer than this share of the larger
+/// differ by the rounding of the sums that made them (taken in another order), not by
+/// what the policies did, and count as equal.
+pub const RESOLUTION: f64 = 1e-9;
+
+/// Whether `a` and `b` are equal within the figures' resolution.
+pub fn tie(a: f64, b: f64) -> bool {
+    a == b || (a - b).abs() <= RESOLUTION * a.abs().max(b.abs())
+}
+
+/// How an episode ended, each in one class: reached its goal, or else how it failed, or
+/// that it ran out of time (or reached the road's end) without success. `Summary::outcomes`
+/// gives each class's share; the rates plot stacks them, so a policy that just stops shows.
+pub const OUTCOMES: [Outcome; 5] = [
+    Outcome { key: "success", heading: "success" },
+    Outcome { key: "collision", heading: "collision" },
+    Outcome { key: "off_road", heading: "off-road" },
+    Outcome { key: "lane_end", heading: "lane end" },
+    Outcome { key: "no_success", heading: "time-out without success" },
+];
+
+/// One class of `OUTCOMES`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Outcome {
+    /// Its key in `Summary::outcomes` and JSON.
+    pub key: &'static str,
+    /// Its label in plots.
+    pub heading: &'static str,
+}
+
+/// The position in `OUTCOMES` of how `e` ended.
+fn outcome(e: &Episode) -> usize {
+    let success = figure_index("success").is_some_and(|k| e.figures[k] == 1.0);
+    let key = match e.end_reason.as_str() {
+        _ if success => "success",
+        end @ ("collision" | "off_road" | "lane_end") => end,
+        _ => "no_success",
+    };
+    OUTCOMES.iter().position(|o| o.key == key).unwrap_or(OUTCOMES.len() - 1)
+}
+
+/// The share of `episodes` in each of `OUTCOMES`.
+fn outcomes(episodes: &[&Episode]) -> Vec<(String, f64)> {
+    let mut counts = [0usize; OUTCOMES.len()];
+    episodes.iter().for_each(|e| counts[outcome(e)] += 1);
+    let total = episodes.len().max(1) as f64;
+    OUTCOMES.iter().zip(counts).map(|(o, count)| (o.key.to_string(), count as f64 / total)).collect()
+}
+
 fn estimate(figure: &Figure, values: &[f64], distinct: usize, settings: &Settings) -> Estimate {
-    let (mean, low, high) = if figure.rate { wilson(values) } else { t_interval(values) };
+    let (mean, low, high) = match (figure.rate, distinct) {
+        // One episode repeated: its figure, with nothing to put an interval on.
+        (_, 1) if !values.is_empty() => (values[0], values[0], values[0]),
+        (true, _) => wilson(values),
+        (false, _) => t_interval(values),
+    };
     let n = values.len();
     let (median, iqm) = match (figure.rate, n, distinct) {
         (true, ..) | (false, 0, _) => (None, None),
@@ -345,34 +425,92 @@ fn differences(mine: &[&Episode], reference: &[&Episode], settings: &Settings) -
         .iter()
         .filter_map(|e| Some((*e, *reference.iter().find(|r| r.seed == e.seed && r.agent == e.agent)?)))
         .collect();
+    let (mut seen, mut distinct) = (Vec::new(), Vec::new());
+    for &(e, r) in &pairs {
+        let key = (bits(e), bits(r));
+        if !seen.contains(&key) {
+            seen.push(key);
+            distinct.push((e, r));
+        }
+    }
     FIGURES
         .iter()
         .enumerate()
         .map(|(k, figure)| {
-            let both: Vec<(f64, f64)> = pairs
-                .iter()
-                .map(|(e, r)| (e.figures[k], r.figures[k]))
-                .filter(|(a, b)| !a.is_nan() && !b.is_nan())
-                .collect();
-            let gaps: Vec<f64> = both.iter().map(|(a, b)| a - b).collect();
-            let summary: fn(&[f64]) -> f64 = if figure.rate { stats::mean } else { stats::iqm };
-            let difference = match gaps.len() {
-                0 => Interval::exact(f64::NAN),
-                _ if gaps.iter().all(|&g| g == gaps[0]) => Interval::exact(gaps[0]),
-                _ => settings.bootstrap.intervals(std::slice::from_ref(&gaps), |sorted| [summary(sorted)])[0],
-            };
-            let sign = match figure.better {
-                Better::Higher => Some(1.0),
-                Better::Lower => Some(-1.0),
-                Better::Neither => None,
-            };
-            let improvement = sign.filter(|_| !both.is_empty()).map(|sign| {
-                let (x, y): (Vec<f64>, Vec<f64>) = both.iter().map(|(a, b)| (sign * a, sign * b)).unzip();
-                settings.bootstrap.improvement(&[x], &[y])
-            });
-            (figure.key.to_string(), Difference { n: gaps.len(), difference, improvement })
+            let applies = |(e, r): &&(&Episode, &Episode)| !e.figures[k].is_nan() && !r.figures[k].is_nan();
+            let n = pairs.iter().filter(applies).count();
+            let both: Vec<(f64, f64)> =
+                distinct.iter().filter(applies).map(|(e, r)| (e.figures[k], r.figures[k])).collect();
+            (figure.key.to_string(), difference(figure, n, &both, settings))
         })
         .collect()
+}
+
+/// The difference of one figure over `n` pairs whose distinct values are `both` (policy,
+/// reference).
+fn difference(figure: &Figure, n: usize, both: &[(f64, f64)], settings: &Settings) -> Difference {
+    let gaps: Vec<f64> = both.iter().map(|&(a, b)| if tie(a, b) { 0.0 } else { a - b }).collect();
+    let summary: fn(&[f64]) -> f64 = if figure.rate { stats::mean } else { stats::iqm };
+    let difference = match gaps.len() {
+        0 => Interval::exact(f64::NAN),
+        _ if gaps.iter().all(|&g| g == gaps[0]) => Interval::exact(gaps[0]),
+        _ => settings.bootstrap.intervals(std::slice::from_ref(&gaps), |sorted| [summary(sorted)])[0],
+    };
+    let sampled = gaps.len() >= 2;
+    let sign = match figure.better {
+        Better::Higher => Some(1.0),
+        Better::Lower => Some(-1.0),
+        Better::Neither => None,
+    };
+    let improvement = sign.filter(|_| sampled).map(|sign| {
+        let (x, y): (Vec<f64>, Vec<f64>) = both.iter().map(|(a, b)| (sign * a, sign * b)).unzip();
+        settings.bootstrap.improvement(&[x], &[y])
+    });
+    Difference { n, distinct: gaps.len(), difference, significant: sampled && difference.excludes_zero(), improvement }
+}
+
+/// Which way a difference points for the policy: 1 better, -1 worse, 0 neither (or
+/// unknown): the probability of improvement's side of 0.5 where there is one, else the
+/// paired difference's sign on the figure's better side.
+fn direction(figure: &Figure, d: &Difference) -> f64 {
+    let sign = match figure.better {
+        Better::Higher => 1.0,
+        Better::Lower => -1.0,
+        Better::Neither => return 0.0,
+    };
+    let leaning = match d.improvement {
+        Some(p) => p.value - 0.5,
+        None => sign * d.difference.value,
+    };
+    if leaning.is_nan() || leaning.abs() <= RESOLUTION { 0.0 } else { leaning.signum() }
+}
+
+/// A warning when success, the primary figure, and the return disagree on whether the
+/// policy beats `reference`: the return of a policy that runs off its lane's end can
+/// still be higher, so a comparison by return alone would hide the failures.
+fn disagreement(reference: &str, differences: &[(String, Difference)]) -> Option<String> {
+    let of = |key: &str| {
+        let figure = FIGURES.iter().find(|f| f.key == key)?;
+        let (_, d) = differences.iter().find(|(k, _)| k == key)?;
+        Some((direction(figure, d), d))
+    };
+    let ((success, s), (ret, r)) = (of("success")?, of("return")?);
+    if success * ret >= 0.0 {
+        return None;
+    }
+    let word = |direction: f64| if direction > 0.0 { "better" } else { "worse" };
+    let how = |d: &Difference| match d.improvement {
+        Some(p) => format!("probability of improvement {:.2}", p.value),
+        None => format!("difference {}", tables::number(d.difference.value)),
+    };
+    Some(format!(
+        "success says {} than `{reference}` ({}) but return says {} ({}): compare them by success first; the \
+         return alone hides how episodes ended",
+        word(success),
+        how(s),
+        word(ret),
+        how(r)
+    ))
 }
 
 /// The Wilson score interval of a rate (right at 0 and 1, where the normal one collapses).
@@ -542,6 +680,85 @@ mod tests {
         let table = markdown(std::slice::from_ref(summary));
         assert!(table.contains("| s | p | 50 (1 distinct) | 100 % |"), "{table}");
         assert!(!table.contains("[93, 100]"), "{table}");
+    }
+
+    /// Two policies on a scenario without randomness: every seed gives each the same
+    /// episode, so 50 pairs are one, whatever their difference.
+    #[test]
+    fn one_distinct_pair_gets_a_value_without_interval_mark_or_probability() {
+        let mut episodes: Vec<Episode> = (0..50).map(|s| episode("nash", s, 2.0, 97.0)).collect();
+        episodes.extend((0..50).map(|s| episode("stackelberg", s, 2.5, 95.42)));
+        let summaries = summarise(&episodes, &Settings::default()).expect("summaries");
+        let ret = difference(&summaries[1], "return");
+        assert_eq!((ret.n, ret.distinct), (50, 1));
+        assert!((ret.difference.value - (95.42 - 97.0)).abs() < 1e-12, "{ret:?}");
+        assert_eq!(ret.difference.low, ret.difference.high, "no interval from one pair");
+        assert!(!ret.significant && ret.improvement.is_none(), "{ret:?}");
+        let table = markdown(&summaries);
+        assert!(!table.contains("| **"), "nothing is significant from one distinct pair:\n{table}");
+        let improvement = table.split("Probability of improvement").nth(1).expect("the table");
+        assert!(improvement.contains("| s | stackelberg | 50 (deterministic: 1 distinct pair) | - | - |"), "{table}");
+        assert!(table.contains("| 50 (1 distinct) | 100 % |"), "{table}");
+    }
+
+    /// A rate's Wilson interval from 50 copies of one episode would claim [93, 100].
+    #[test]
+    fn one_distinct_episode_has_no_rate_interval() {
+        let episodes: Vec<Episode> = (0..50).map(|s| episode("p", s, 2.0, 120.0)).collect();
+        let success = get(&summarise(&episodes, &Settings::default()).expect("summaries")[0], "success").to_owned();
+        assert_eq!((success.mean, success.low, success.high), (1.0, 1.0, 1.0));
+    }
+
+    #[test]
+    fn differences_within_the_resolution_are_ties() {
+        let a: Vec<Episode> = (0..30).map(|s| episode("a", s, 2.0, 10.0 * s as f64)).collect();
+        let mut b = a.clone();
+        for e in &mut b {
+            e.policy = "b".into();
+            // 3 + 8.88e-16: two units in the last place, what a sum in another order gives.
+            e.figures[13] += 8.88e-16;
+            assert_ne!(e.figures[13], 3.0);
+        }
+        let summaries = summarise(&[a, b].concat(), &Settings::default()).expect("summaries");
+        let jerk = difference(&summaries[1], "max_jerk");
+        assert_eq!((jerk.distinct, jerk.difference.value, jerk.difference.high), (30, 0.0, 0.0), "{jerk:?}");
+        assert!(!jerk.significant, "{jerk:?}");
+        assert_eq!(jerk.improvement.map(|p| p.value), Some(0.5), "tied episodes are neither better nor worse");
+        let table = markdown(&summaries);
+        assert!(!table.contains("| **"), "no bold cell:\n{table}");
+        assert!(tie(1e6, 1e6 + 1e-4) && !tie(1e6, 1e6 + 1e-2) && !tie(0.0, 1e-300) && tie(-0.0, 0.0));
+    }
+
+    /// A policy that runs off its lane's end on a third of the seeds but earns more on
+    /// every step of the others: by return alone it looks better.
+    #[test]
+    fn success_and_return_that_disagree_are_warned_of() {
+        let a: Vec<Episode> = (0..30).map(|s| episode("expert", s, 2.0, 100.0 + s as f64)).collect();
+        let mut b: Vec<Episode> = (0..30).map(|s| episode("bc", s, 2.0, 120.0 + s as f64)).collect();
+        for e in b.iter_mut().take(10) {
+            e.end_reason = "lane_end".into();
+            (e.figures[0], e.figures[3]) = (0.0, 1.0);
+        }
+        let summaries = summarise(&[a, b].concat(), &Settings::default()).expect("summaries");
+        let bc = &summaries[1];
+        assert!(difference(bc, "success").improvement.expect("success").value < 0.5);
+        assert!(difference(bc, "return").improvement.expect("return").value > 0.5);
+        assert_eq!(bc.warnings.len(), 1, "{:?}", bc.warnings);
+        assert!(bc.warnings[0].starts_with("success says worse than `expert`"), "{}", bc.warnings[0]);
+        let table = markdown(&summaries);
+        assert!(table.contains("- **Warning**, bc on s: success says worse"), "{table}");
+        assert!(summaries[0].warnings.is_empty(), "the reference compares with nothing");
+        let shares: Vec<f64> = bc.outcomes.iter().map(|(_, share)| *share).collect();
+        assert_eq!(shares, [20.0 / 30.0, 0.0, 0.0, 10.0 / 30.0, 0.0], "{:?}", bc.outcomes);
+    }
+
+    #[test]
+    fn a_policy_that_stops_shows_as_time_out_without_success() {
+        let mut stopped = episode("stop", 0, f64::NAN, 0.0);
+        stopped.figures[0] = 0.0;
+        let summary = &summarise(&[stopped], &Settings::default()).expect("summaries")[0];
+        let timeout = summary.outcomes.iter().find(|(key, _)| key == "no_success").expect("the class");
+        assert_eq!(timeout.1, 1.0, "{:?}", summary.outcomes);
     }
 
     #[test]

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 
 use serde::Serialize;
 
-use super::{Difference, Episode, Estimate, FIGURES, Figure, Summary};
+use super::{Difference, Episode, Estimate, FIGURES, Figure, RESOLUTION, Summary};
 use crate::stats::Interval;
 
 /// A number with three significant digits, in scientific notation beyond 1e5 or below 1e-3.
@@ -45,7 +45,8 @@ fn interval_cell(interval: Option<&Interval>, distinct: usize) -> String {
     }
 }
 
-/// A paired difference, bold when its interval leaves out zero; rates in percentage points.
+/// A paired difference, bold when it is significant (`Difference::significant`); rates in
+/// percentage points.
 fn difference_cell(figure: &Figure, d: &Difference) -> String {
     let i = &d.difference;
     if d.n == 0 || i.value.is_nan() {
@@ -61,7 +62,7 @@ fn difference_cell(figure: &Figure, d: &Difference) -> String {
     } else {
         format!("{}{unit} [{}, {}]", show(i.value), show(i.low), show(i.high))
     };
-    if i.excludes_zero() { format!("**{text}**") } else { text }
+    if d.significant { format!("**{text}**") } else { text }
 }
 
 fn improvement_cell(d: &Difference) -> String {
@@ -80,6 +81,17 @@ fn header(out: &mut String, first: &str) {
     out.push_str("\n|---|---|---:|");
     out.push_str(&"---:|".repeat(FIGURES.len()));
     out.push('\n');
+}
+
+/// The pairs of a policy's comparison: how many, and how many distinct when fewer (one:
+/// a deterministic scenario, whose difference is a value without interval or mark).
+fn pairs_cell(s: &Summary) -> String {
+    let most = |count: fn(&Difference) -> usize| s.differences.iter().map(|(_, d)| count(d)).max().unwrap_or(0);
+    match (most(|d| d.n), most(|d| d.distinct)) {
+        (n, 1) => format!("{n} (deterministic: 1 distinct pair)"),
+        (n, distinct) if distinct < n => format!("{n} ({distinct} distinct)"),
+        (n, _) => n.to_string(),
+    }
 }
 
 fn episodes_cell(s: &Summary) -> String {
@@ -121,13 +133,13 @@ pub fn markdown(summaries: &[Summary]) -> String {
     let reference = compared[0].reference.as_deref().unwrap_or_default();
     let _ = write!(
         out,
-        "\nPaired differences from `{reference}` (policy minus reference on the same seeds; rates: mean, in \
-         percentage points; others: IQM; **bold**: the 95 % interval leaves out 0):\n\n"
+        "\nPaired differences from `{reference}` (policy minus reference on the same seeds, over the distinct \
+         pairs; rates: mean, in percentage points; others: IQM; differences within {RESOLUTION:e} of the values \
+         count as 0; **bold**: the 95 % interval over at least two distinct pairs leaves out 0):\n\n"
     );
     header(&mut out, "pairs");
     for s in &compared {
-        let pairs = s.differences.iter().map(|(_, d)| d.n).max().unwrap_or(0);
-        let _ = write!(out, "| {} | {} | {pairs} |", s.scenario, s.policy);
+        let _ = write!(out, "| {} | {} | {} |", s.scenario, s.policy, pairs_cell(s));
         for (figure, (_, d)) in FIGURES.iter().zip(&s.differences) {
             let _ = write!(out, " {} |", difference_cell(figure, d));
         }
@@ -136,16 +148,24 @@ pub fn markdown(summaries: &[Summary]) -> String {
     let _ = write!(
         out,
         "\nProbability of improvement over `{reference}` (rliable's: P(policy better) + P(equal) / 2 for an \
-         episode of each drawn at random):\n\n"
+         episode of each of the distinct pairs drawn at random; none from one distinct pair, a deterministic \
+         scenario's):\n\n"
     );
     header(&mut out, "pairs");
     for s in &compared {
-        let pairs = s.differences.iter().map(|(_, d)| d.n).max().unwrap_or(0);
-        let _ = write!(out, "| {} | {} | {pairs} |", s.scenario, s.policy);
+        let _ = write!(out, "| {} | {} | {} |", s.scenario, s.policy, pairs_cell(s));
         for (_, d) in &s.differences {
             let _ = write!(out, " {} |", improvement_cell(d));
         }
         out.push('\n');
+    }
+    let warnings: Vec<String> = compared
+        .iter()
+        .flat_map(|s| s.warnings.iter().map(move |w| format!("- **Warning**, {} on {}: {w}\n", s.policy, s.scenario)))
+        .collect();
+    if !warnings.is_empty() {
+        out.push_str("\nSuccess and return disagree:\n\n");
+        warnings.iter().for_each(|w| out.push_str(w));
     }
     out
 }
@@ -181,8 +201,8 @@ pub fn csv(summaries: &[Summary]) -> String {
 /// The paired differences as CSV, one row per (scenario, policy, figure).
 pub fn differences_csv(summaries: &[Summary]) -> String {
     let mut out = String::from(
-        "scenario,policy,reference,figure,pairs,difference,difference_low,difference_high,excludes_zero,\
-         improvement,improvement_low,improvement_high\n",
+        "scenario,policy,reference,figure,pairs,distinct_pairs,difference,difference_low,difference_high,\
+         significant,improvement,improvement_low,improvement_high\n",
     );
     for s in summaries {
         let Some(reference) = &s.reference else { continue };
@@ -190,14 +210,15 @@ pub fn differences_csv(summaries: &[Summary]) -> String {
             let i = &d.difference;
             let _ = writeln!(
                 out,
-                "{},{},{reference},{key},{},{},{},{},{},{}",
+                "{},{},{reference},{key},{},{},{},{},{},{},{}",
                 s.scenario,
                 s.policy,
                 d.n,
+                d.distinct,
                 i.value,
                 i.low,
                 i.high,
-                i.excludes_zero(),
+                d.significant,
                 fields(d.improvement.as_ref())
             );
         }

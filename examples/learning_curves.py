@@ -4,8 +4,8 @@ success, collision and off-road rates and the mean return on held-out seeds (10 
 played by the most likely action and sampled, every `--every` steps from the start;
 the last point is measured on `--final-episodes` episodes. Writes every point to
 `curves.csv` in `--out`, with the training's wall time and CPU seconds so far (learner
-and server, evaluation left out), and plots `<scenario>.png` from it (`--plot-only`
-re-plots an existing CSV).
+and server, evaluation left out), and plots `<scenario>.png` from it and prints the last points as a table
+(`--plot-only` does both for an existing CSV).
 
     python examples/learning_curves.py --out docs/images/learning-curves
 
@@ -108,6 +108,33 @@ def train_and_measure(args, scenario: str, seed: int, connect: str, server_pid, 
     vec.close()
 
 
+def summary(path: str) -> str:
+    """The last point of every run as a Markdown table (docs/baselines.md's)."""
+    with open(path, encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    last = {}
+    for row in rows:
+        last[(row["scenario"], row["seed"], row["played"])] = row
+    lines = [
+        "| scenario | seed | steps | episodes | most likely action: success / collision / off-road "
+        "| sampled: success / collision / off-road | training (s) | CPU-s (learner + server) |",
+        "|---|---:|---:|---:|---|---|---:|---:|",
+    ]
+    for (scenario, seed, played), row in last.items():
+        if played != "argmax":
+            continue
+        shares = [
+            " / ".join(f"{100 * float(each[key]):.0f} %" for key in ("success", "collision", "off_road"))
+            for each in (row, last[(scenario, seed, "sampled")])
+        ]
+        cpu = f"{float(row['train_cpu_learner_s']):.0f} + {float(row['train_cpu_server_s']):.0f}"
+        lines.append(
+            f"| {scenario} | {seed} | {row['steps']} | {row['episodes']} | {shares[0]} | {shares[1]} "
+            f"| {float(row['train_wall_s']):.0f} | {cpu} |"
+        )
+    return "\n".join(lines)
+
+
 def plot(path: str, out: str) -> None:
     import matplotlib
 
@@ -170,6 +197,7 @@ def main() -> None:
 
             with_server(args.connect, run)
     plot(path, args.out)
+    print(summary(path))
     print(f"wrote {path} and the PNGs beside it (held-out seeds from {HELD_OUT_SEED})")
 
 

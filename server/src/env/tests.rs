@@ -1479,12 +1479,12 @@ fn lane_end_nearness(observation: &Observation) -> f32 {
 fn the_own_row_shows_how_near_the_end_of_the_agents_lane_is() {
     // merge: EC starts 200 m before its lane's end (252 m), out of sight (100 m); held in
     // its lane at its speed, the nearness rises with every step until the lane ends.
-    let mut env = env("merge", CreateOptions::default());
-    let reset = env.reset(Some(0), NO_OPTIONS).unwrap();
+    let mut merging = env("merge", CreateOptions::default());
+    let reset = merging.reset(Some(0), NO_OPTIONS).unwrap();
     assert_eq!(lane_end_nearness(&reset[0].observation), 0.0);
     let mut seen = Vec::new();
     loop {
-        let step = env.step(&meta_of("ec_0", MetaAction::Idle)).unwrap().remove(0);
+        let step = merging.step(&meta_of("ec_0", MetaAction::Idle)).unwrap().remove(0);
         if step.terminated || step.truncated {
             assert_eq!(figure(&step.info, arena_protocol::info::END_REASON), InfoValue::I64(3), "lane_end");
             break;
@@ -1494,10 +1494,10 @@ fn the_own_row_shows_how_near_the_end_of_the_agents_lane_is() {
     assert!(seen.windows(2).all(|pair| pair[1] >= pair[0]), "{seen:?}");
     assert!(seen[0] == 0.0 && *seen.last().unwrap() > 0.9, "{seen:?}");
     // merge-ac: the learner holds the through lane, which runs on past sight: always 0.
-    let mut env = env("merge-ac", CreateOptions::default());
-    env.reset(Some(0), NO_OPTIONS).unwrap();
+    let mut through = env("merge-ac", CreateOptions::default());
+    through.reset(Some(0), NO_OPTIONS).unwrap();
     for _ in 0..100 {
-        let step = env.step(&meta_of("ac_0", MetaAction::Idle)).unwrap().remove(0);
+        let step = through.step(&meta_of("ac_0", MetaAction::Idle)).unwrap().remove(0);
         assert_eq!(lane_end_nearness(&step.observation), 0.0);
     }
 }

@@ -8,10 +8,10 @@ by its most likely action (SB3's `deterministic=True`) and sampled.
     python examples/ppo_highway.py --scenario merge-random-1hz
 
 The defaults (100 000 steps, 8 envs, entropy bonus 0.01, rewards normalised, seed 0,
-200 evaluation episodes) are the benchmark of docs/baselines.md ("Learning curves"):
-on merge-random-1hz and overtake-random-1hz, the 1 Hz versions of the randomised paper
-scenarios (docs/scenarios.md, "Decision rate"), they learn to merge and to pass played
-either way. Launches its own arena-server (or use --connect ENDPOINT for a running one)
+200 evaluation episodes) are the benchmark of docs/baselines.md ("Learning curves"), on
+merge-random-1hz, the 1 Hz version of merge-random (docs/scenarios.md, "Decision
+rate"): with seed 0 it merges played either way; the curves there show the other
+seeds and overtake-random-1hz. Launches its own arena-server (or use --connect ENDPOINT for a running one)
 and prints the training's wall time and CPU seconds (this process and, when it launched
 it, the server).
 

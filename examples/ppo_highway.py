@@ -1,33 +1,36 @@
 """Train PPO (Stable-Baselines3) against a scenario through the vector env
 (highway_arena.sb3.vec_env: every step of all envs in one round trip), and print the
 mean episode return and the success, collision and off-road rates of the policy before
-and after training (highway_arena.evaluate, on seeds training never used).
+and after training (highway_arena.evaluate, on seeds training never used), played both
+by its most likely action (SB3's `deterministic=True`) and sampled.
 
     pip install -r examples/requirements-ppo.txt     # stable-baselines3 and torch
-    python examples/ppo_highway.py --scenario merge --timesteps 20000
+    python examples/ppo_highway.py --scenario merge-random-1hz
 
-Launches its own arena-server (or use --connect ENDPOINT for a running one). A step the
-learner survives earns within [-w - b, 1 + b], with the risk weight w = 10 and the goal
-bonus b = 0 (overtake: 15 and 50), and a crash -((1 + w) x the episode length + 2b)
-(docs/rewards.md: the risk term, the goal bonus), so PPO
-learns on rewards scaled by the running spread of returns (SB3's VecNormalize, rewards
-only; --no-normalize turns it off), with an entropy bonus of 0.01 (without it PPO stops
-short of merge-random's lane end). The league's checkpoints were made so:
+The defaults (100 000 steps, 8 envs, entropy bonus 0.01, rewards normalised, seed 0,
+200 evaluation episodes) are the benchmark of docs/baselines.md ("Learning curves"), on
+merge-random-1hz, the 1 Hz version of merge-random (docs/scenarios.md, "Decision
+rate"): with seed 0 it merges played either way; the curves there show the other
+seeds and overtake-random-1hz. Launches its own arena-server (or use --connect ENDPOINT for a running one)
+and prints the training's wall time and CPU seconds (this process and, when it launched
+it, the server).
 
-    python examples/ppo_highway.py --scenario merge-random --timesteps 300000 --envs 8 --episodes 20 --ent-coef 0.01 --save league/ppo-merge-random.zip
-    python examples/ppo_highway.py --scenario overtake-random --timesteps 300000 --envs 8 --episodes 20 --ent-coef 0.01 --save league/ppo-overtake-random.zip
-
-The report gives the policy twice: sampled from its action distribution (seeded: how it
-trained, and how the league plays it) and by its most likely action, which on
-overtake-random crashes where the sampled policy passes (docs/baselines.md, "PPO").
+A step the learner survives earns within [-w - b, 1 + b], with the risk weight w = 10 and
+the goal bonus b (merge-random-1hz: b = 2; overtake-random-1hz: w = 15, b = 5; docs/rewards.md),
+and a crash -((1 + w) x the episode length + 2b), so PPO learns on rewards scaled by the
+running spread of returns (SB3's VecNormalize, rewards only; --no-normalize turns it
+off), with an entropy bonus of 0.01 (without it PPO stops short of merge-random's lane
+end).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 
+import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.utils import set_random_seed
@@ -35,6 +38,9 @@ from stable_baselines3.common.vec_env import VecNormalize
 
 import highway_arena
 from highway_arena.sb3 import sampled, vec_env
+
+# The first held-out seed: training draws its episodes from other seeds.
+HELD_OUT_SEED = 10_000
 
 
 def parse_override(text: str) -> tuple[str, object]:
@@ -48,23 +54,68 @@ def parse_override(text: str) -> tuple[str, object]:
         return key, value
 
 
-def report(when: str, model, scenario: str, connect: str, episodes: int, overrides: dict) -> None:
-    """The policy on held-out seeds (10 000 on), measured as arena eval measures: sampled
-    from its action distribution (seed 0, as trained and as the league plays it) and by
-    its most likely action."""
-    policies = {"sampled": sampled(model, seed=0), "argmax": model}
+# Steps each env takes per PPO rollout.
+N_STEPS = 256
+
+
+def make_model(vec, seed: int, ent_coef: float, normalize: bool) -> PPO:
+    """The benchmark's PPO: MlpPolicy, N_STEPS per env, batch 256, rewards normalised."""
+    if normalize:
+        vec = VecNormalize(vec, norm_obs=False, norm_reward=True)
+    set_random_seed(seed)
+    return PPO("MlpPolicy", vec, n_steps=N_STEPS, batch_size=256, ent_coef=ent_coef, seed=seed, verbose=0)
+
+
+def whole_rollouts(timesteps: int, envs: int) -> int:
+    """The steps of the whole rollouts that fit in ``timesteps`` (at least one): SB3 ends
+    the rollout it is in, so 100 000 steps asked of 8 envs would take 100 352."""
+    rollout = N_STEPS * envs
+    return max(rollout, timesteps // rollout * rollout)
+
+
+def rates(model, scenario: str, connect: str, episodes: int, overrides: dict) -> dict:
+    """The policy on held-out seeds (10 000 on), measured as arena eval measures, played
+    by its most likely action and sampled from its action distribution (seed 0, as the
+    league plays it): {"argmax": figures, "sampled": figures}, figures as
+    ``Evaluation.summary`` gives them."""
+    policies = {"argmax": model, "sampled": sampled(model, seed=0)}
     result = highway_arena.evaluate(
-        policies, scenario, episodes, seed=10_000, connect=connect, quiet=True, overrides=overrides
+        policies, scenario, episodes, seed=HELD_OUT_SEED, connect=connect, quiet=True, bootstrap=200, overrides=overrides
     )
-    for name in policies:
-        figures = result.summary(scenario, name)
-        rates = ", ".join(f"{key} {figures[key]['mean']:.0%}" for key in ("success", "collision", "off_road"))
-        print(f"{when}, {name}: mean return {figures['return']['mean']:.1f}, {rates} ({episodes} episodes)", flush=True)
+    return {name: result.summary(scenario, name) for name in policies}
+
+
+def report(when: str, model, scenario: str, connect: str, episodes: int, overrides: dict) -> None:
+    for name, figures in rates(model, scenario, connect, episodes, overrides).items():
+        shares = ", ".join(f"{key} {figures[key]['mean']:.0%}" for key in ("success", "collision", "off_road"))
+        print(f"{when}, {name}: mean return {figures['return']['mean']:.1f}, {shares} ({episodes} episodes)", flush=True)
+
+
+def cpu_seconds(pid: int | None = None) -> float:
+    """CPU seconds (user + system) used so far by this process (all its threads), or by
+    process ``pid`` (Linux: /proc; 0 where it cannot be read)."""
+    if pid is None:
+        return time.process_time()
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def with_server(connect: str | None, run) -> None:
+    """Calls ``run(endpoint, server_pid)``: on ``connect`` (pid None) if given, else on an
+    arena-server launched for the call."""
+    if connect:
+        run(connect, None)
+        return
+    with highway_arena.launch_server() as server:
+        run(server.endpoint, server.process.pid)
 
 
 class Progress(BaseCallback):
-    """Prints the steps done, the time taken and the time left every tenth of the run (a
-    run on highway-gt takes about 17 minutes on two cores)."""
+    """Prints the steps done, the time taken and the time left every tenth of the run."""
 
     def __init__(self, total: int):
         super().__init__()
@@ -83,10 +134,13 @@ class Progress(BaseCallback):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--connect", help="endpoint of a running arena-server (default: launch one)")
-    parser.add_argument("--scenario", default="highway", help="scenario to train on (default highway)")
-    parser.add_argument("--timesteps", type=int, default=20_000, help="PPO training steps (default 20000)")
+    parser.add_argument("--scenario", default="merge-random-1hz", help="scenario to train on (default merge-random-1hz)")
+    parser.add_argument(
+        "--timesteps", type=int, default=100_000, help="PPO training steps, in whole rollouts (default 100000: 98304)"
+    )
     parser.add_argument("--envs", type=int, default=8, help="parallel envs for training (default 8)")
-    parser.add_argument("--episodes", type=int, default=10, help="evaluation episodes (default 10)")
+    parser.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    parser.add_argument("--episodes", type=int, default=200, help="evaluation episodes (default 200)")
     parser.add_argument("--save", help="write the trained model to this .zip file")
     parser.add_argument("--no-normalize", action="store_true", help="train on the raw rewards (no VecNormalize)")
     parser.add_argument(
@@ -101,24 +155,26 @@ def main() -> None:
     )
     args = parser.parse_args()
     overrides = dict(parse_override(text) for text in args.override)
+    # One thread: PPO's small MLP gains nothing from more, and the server needs the cores.
+    torch.set_num_threads(1)
 
-    def run(connect: str) -> None:
+    def run(connect: str, server_pid: int | None) -> None:
         vec = vec_env(args.scenario, num_envs=args.envs, connect=connect, overrides=overrides)
-        if not args.no_normalize:
-            vec = VecNormalize(vec, norm_obs=False, norm_reward=True)
-        set_random_seed(0)
-        model = PPO("MlpPolicy", vec, n_steps=256, batch_size=256, ent_coef=args.ent_coef, seed=0, verbose=0)
+        model = make_model(vec, args.seed, args.ent_coef, not args.no_normalize)
         report("before training", model, args.scenario, connect, args.episodes, overrides)
-        started = time.perf_counter()
-        model.learn(total_timesteps=args.timesteps, callback=Progress(args.timesteps))
+        steps = whole_rollouts(args.timesteps, args.envs)
+        started, cpu = time.perf_counter(), (cpu_seconds(), cpu_seconds(server_pid) if server_pid else 0.0)
+        model.learn(total_timesteps=steps, callback=Progress(steps))
         seconds = time.perf_counter() - started
-        report(f"after {args.timesteps} steps ({seconds:.0f} s)", model, args.scenario, connect, args.episodes, overrides)
+        learner, server = cpu_seconds() - cpu[0], (cpu_seconds(server_pid) - cpu[1]) if server_pid else None
+        spent = f"{learner:.0f} CPU-s here" + (f", {server:.0f} CPU-s in the server" if server is not None else "")
+        print(f"trained {model.num_timesteps} steps in {seconds:.0f} s ({spent})", flush=True)
+        report(f"after {model.num_timesteps} steps", model, args.scenario, connect, args.episodes, overrides)
         if args.save:
             model.save(args.save)
         vec.close()
 
-    with highway_arena.serving(args.connect) as connect:
-        run(connect)
+    with_server(args.connect, run)
 
 
 if __name__ == "__main__":

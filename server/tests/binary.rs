@@ -55,8 +55,10 @@ async fn serves_then_stops_on_sigterm() {
                 "merge-ac",
                 "merge-duo",
                 "merge-random",
+                "merge-random-1hz",
                 "overtake",
                 "overtake-random",
+                "overtake-random-1hz",
             ];
             assert_eq!(info.scenarios, expected);
         }

@@ -71,13 +71,23 @@ fn features(road: &Road, state: &VehicleState, origin: Option<&VehicleState>) ->
     [1.0, s, d, vs, vd, cos, sin].map(|x| x.clamp(-1.0, 1.0) as f32)
 }
 
-/// The agent's own row (absolute, with s = 0), then the nearest cars on the road within
-/// sight, by distance along the road (ties by id), found through the scene's index.
+/// How near the end of the lane it is in a car at `s` is: 0 with the end out of sight
+/// (beyond `SIGHT`, or a lane that runs to the road's end far ahead), rising to 1 at the
+/// end. It is the own row's s (observation version 2; version 1 had 0 there): without
+/// it an agent cannot tell a lane that ends from one that goes on, and a policy can
+/// only spread its lane change thinly over every step (docs/scenarios.md, "Decision rate").
+fn lane_end_nearness(road: &Road, lane: arena_sim::LaneId, s: f64) -> f32 {
+    (1.0 - (road.lane_end(lane) - s) / SIGHT).clamp(0.0, 1.0) as f32
+}
+
+/// The agent's own row (absolute, with s the nearness of its lane's end), then the
+/// nearest cars on the road within sight, by distance along the road (ties by id), found
+/// through the scene's index.
 pub fn kinematics(scene: &Scene, id: VehicleId) -> Tensor {
     let me = scene.car(id);
     let mut data = Vec::with_capacity(KINEMATICS_VEHICLES * KINEMATICS_FEATURES);
     let mut own = features(&scene.road, &me.state, None);
-    own[1] = 0.0;
+    own[1] = lane_end_nearness(&scene.road, me.lane, me.state.s);
     data.extend(own);
     for other in nearest::<{ KINEMATICS_VEHICLES - 1 }>(scene, id, me.state.s).into_iter().flatten() {
         data.extend(features(&scene.road, &scene.car(other).state, Some(&me.state)));

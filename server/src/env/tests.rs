@@ -538,18 +538,18 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
     }
 }
 
-/// The mean return over seeds 0..10 of overtake-random (with `reward` overrides) of a
-/// learner that changes into the left lane at once, beside the cars there, and then only
-/// speeds up (what PPO learned under the reward without risk), and of the AV (`expert`)
-/// in its place.
-fn squeezer_and_av_returns(reward: &[(&str, f64)]) -> (f64, f64) {
+/// The mean return over seeds 0..10 of `scenario` (overtake-random, its 1 Hz version or
+/// merge-random-1hz, with `reward` overrides) of a learner that changes into the left
+/// lane at once, beside the cars there, and then only speeds up (what PPO learned under
+/// the reward without risk), and of the AV (`expert`) in its place.
+fn squeezer_and_av_returns(scenario: &str, reward: &[(&str, f64)]) -> (f64, f64) {
     let overrides: Vec<(String, OptionValue)> =
         reward.iter().map(|&(key, value)| (key.to_string(), OptionValue::Float(value))).collect();
     let mut returns = [0.0; 2];
     let expert = arena_protocol::BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Stackelberg };
     for (k, policy) in [None, Some(expert)].into_iter().enumerate() {
         let options = CreateOptions { policy, overrides: overrides.clone(), ..CreateOptions::default() };
-        let mut env = env("overtake-random", options);
+        let mut env = env(scenario, options);
         for seed in 0..10 {
             env.reset(Some(seed), NO_OPTIONS).unwrap();
             for step in 0.. {
@@ -570,11 +570,11 @@ fn squeezer_and_av_returns(reward: &[(&str, f64)]) -> (f64, f64) {
 #[test]
 fn passing_cars_side_by_side_returns_less_than_the_av_under_the_default_reward() {
     // The figures of docs/rewards.md ("Risk", "Goal"): `-- --nocapture` prints them.
-    let (squeezer, av) = squeezer_and_av_returns(&[]);
+    let (squeezer, av) = squeezer_and_av_returns("overtake-random", &[]);
     eprintln!("default reward (goal bonus 50): squeezing {squeezer:.1}, the AV {av:.1}");
     assert!(squeezer < av, "squeezing beside cars returns {squeezer}, the AV {av}");
     // Without the risk term the squeeze out-earns the AV, as PPO found (docs/rewards.md).
-    let (squeezer, av) = squeezer_and_av_returns(&[("reward.risk_weight", 0.0)]);
+    let (squeezer, av) = squeezer_and_av_returns("overtake-random", &[("reward.risk_weight", 0.0)]);
     eprintln!("risk weight 0: squeezing {squeezer:.1}, the AV {av:.1}");
     assert!(squeezer > av + 50.0, "without risk: squeezing {squeezer}, the AV {av}");
     // The goal bonus is paid to both when both pass; the AV passes in fewer of these
@@ -582,10 +582,31 @@ fn passing_cars_side_by_side_returns_less_than_the_av_under_the_default_reward()
     // risk weight of 10 a bonus of 100 handed the squeeze the lead (158.8 against 157.4);
     // under overtake-random's 15 no bonus from 0 to 100 does.
     for bonus in [0.0, 100.0] {
-        let (squeezer, av) = squeezer_and_av_returns(&[("reward.goal_bonus", bonus)]);
+        let (squeezer, av) = squeezer_and_av_returns("overtake-random", &[("reward.goal_bonus", bonus)]);
         eprintln!("goal bonus {bonus}: squeezing {squeezer:.1}, the AV {av:.1}");
         assert!(squeezer < av, "goal bonus {bonus}: squeezing {squeezer}, the AV {av}");
     }
+}
+
+#[test]
+fn passing_cars_side_by_side_returns_less_than_the_av_deciding_once_a_second() {
+    // overtake-random-1hz: the squeeze holds its lane change for a whole second, and the
+    // reward of a step is the mean over its ten control periods, goal bonus 5.
+    let (squeezer, av) = squeezer_and_av_returns("overtake-random-1hz", &[]);
+    eprintln!("1 Hz, default reward (goal bonus 5): squeezing {squeezer:.1}, the AV {av:.1}");
+    assert!(squeezer < av, "squeezing beside cars returns {squeezer}, the AV {av}");
+    let (squeezer, av) = squeezer_and_av_returns("overtake-random-1hz", &[("reward.risk_weight", 0.0)]);
+    eprintln!("1 Hz, risk weight 0: squeezing {squeezer:.1}, the AV {av:.1}");
+    assert!(squeezer > av + 5.0, "without risk: squeezing {squeezer}, the AV {av}");
+    // Twice the bonus, as overtake-random's test pays 100 against its 50.
+    let (squeezer, av) = squeezer_and_av_returns("overtake-random-1hz", &[("reward.goal_bonus", 10.0)]);
+    eprintln!("1 Hz, goal bonus 10: squeezing {squeezer:.1}, the AV {av:.1}");
+    assert!(squeezer < av, "goal bonus 10: squeezing {squeezer}, the AV {av}");
+    // merge-random-1hz pays a goal bonus of 2 for entering the through lane: cutting in
+    // at once beside AC and speeding up still returns less than the AV's merge.
+    let (squeezer, av) = squeezer_and_av_returns("merge-random-1hz", &[]);
+    eprintln!("merge-random-1hz (goal bonus 2): cutting in {squeezer:.1}, the AV {av:.1}");
+    assert!(squeezer < av, "merge-random-1hz: cutting in {squeezer}, the AV {av}");
 }
 
 #[test]
@@ -1443,4 +1464,40 @@ fn a_snapshot_of_another_scenario_options_or_version_or_damaged_is_refused_and_t
     assert!(target.step(&[]).is_ok());
     // Before any reset: nothing to snapshot.
     assert_eq!(env("merge", CreateOptions::default()).snapshot().unwrap_err().code, ErrorCode::NotReset);
+}
+
+/// The own row's s column of `observation` (the nearness of the end of the agent's lane).
+fn lane_end_nearness(observation: &Observation) -> f32 {
+    let Observation::Tensor(arena_protocol::Tensor { data: arena_protocol::TensorData::F32(data), .. }) = observation
+    else {
+        panic!("{observation:?}")
+    };
+    data[1]
+}
+
+#[test]
+fn the_own_row_shows_how_near_the_end_of_the_agents_lane_is() {
+    // merge: EC starts 200 m before its lane's end (252 m), out of sight (100 m); held in
+    // its lane at its speed, the nearness rises with every step until the lane ends.
+    let mut merging = env("merge", CreateOptions::default());
+    let reset = merging.reset(Some(0), NO_OPTIONS).unwrap();
+    assert_eq!(lane_end_nearness(&reset[0].observation), 0.0);
+    let mut seen = Vec::new();
+    loop {
+        let step = merging.step(&meta_of("ec_0", MetaAction::Idle)).unwrap().remove(0);
+        if step.terminated || step.truncated {
+            assert_eq!(figure(&step.info, arena_protocol::info::END_REASON), InfoValue::I64(3), "lane_end");
+            break;
+        }
+        seen.push(lane_end_nearness(&step.observation));
+    }
+    assert!(seen.windows(2).all(|pair| pair[1] >= pair[0]), "{seen:?}");
+    assert!(seen[0] == 0.0 && *seen.last().unwrap() > 0.9, "{seen:?}");
+    // merge-ac: the learner holds the through lane, which runs on past sight: always 0.
+    let mut through = env("merge-ac", CreateOptions::default());
+    through.reset(Some(0), NO_OPTIONS).unwrap();
+    for _ in 0..100 {
+        let step = through.step(&meta_of("ac_0", MetaAction::Idle)).unwrap().remove(0);
+        assert_eq!(lane_end_nearness(&step.observation), 0.0);
+    }
 }

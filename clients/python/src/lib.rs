@@ -232,6 +232,7 @@ fn create_options(given: Option<&Bound<'_, PyDict>>) -> PyResult<CreateOptions> 
             }
             OptionKind::Choice(_) => Given::Name(value.extract().or_else(|_| Err(wrong()?))?),
             OptionKind::Overrides => Given::Overrides(overrides(&value)?),
+            OptionKind::Names => Given::Names(value.extract().or_else(|_| Err(wrong()?))?),
         };
         (option.set)(&mut options, given).map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
     }

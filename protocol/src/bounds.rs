@@ -101,7 +101,10 @@ fn create(scenario: &ScenarioSource, create: &CreateOptions) -> Result<(), Bound
             )?;
         }
     }
-    options("override", &create.overrides)
+    options("override", &create.overrides)?;
+    let info_keys = create.info_keys.as_deref().unwrap_or_default();
+    at_most(|| "the info_keys list".to_string(), info_keys.len(), MAX_OPTIONS, "entries")?;
+    info_keys.iter().try_for_each(|key| name("info key", key))
 }
 
 /// Checks reset overrides that did not come in a request (a snapshot carries its
@@ -196,6 +199,25 @@ mod tests {
             create_with(string(MAX_OPTION_STRING_BYTES + 1)),
             "bytes",
             MAX_OPTION_STRING_BYTES,
+        );
+    }
+
+    #[test]
+    fn info_keys_are_bounded_in_entries_and_bytes() {
+        let keys = |keys: Vec<String>| {
+            let options = CreateOptions { info_keys: Some(keys), ..CreateOptions::default() };
+            Request::new(
+                ClientId(1),
+                RequestBody::CreateEnv { scenario: ScenarioSource::Named("merge".into()), options },
+            )
+        };
+        let many = |n: usize| (0..n).map(|k| format!("k{k}")).collect::<Vec<_>>();
+        bound_holds(keys(many(MAX_OPTIONS)), keys(many(MAX_OPTIONS + 1)), "entries", MAX_OPTIONS);
+        bound_holds(
+            keys(vec!["k".repeat(MAX_NAME_BYTES)]),
+            keys(vec!["k".repeat(MAX_NAME_BYTES + 1)]),
+            "bytes",
+            MAX_NAME_BYTES,
         );
     }
 

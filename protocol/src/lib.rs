@@ -81,5 +81,5 @@ pub use world::{
 /// `CreateOptions::render_window`, and a snapshot holds the env's and the world's state as
 /// they are, without the scene drivers read; 11: a snapshot's vehicles carry the lanes their
 /// bodies are in and the gap behind each as they entered it, and its collisions the
-/// lane-entry rule's verdict beside `at_fault`'s).
-pub const PROTOCOL_VERSION: u16 = 11;
+/// lane-entry rule's verdict beside `at_fault`'s; 12: `CreateOptions::info_keys`).
+pub const PROTOCOL_VERSION: u16 = 12;

@@ -819,6 +819,7 @@ mod tests {
                 OptionKind::Pair => Given::Pair(10, 20),
                 OptionKind::Choice(names) => Given::Name(names().pop().unwrap()),
                 OptionKind::Overrides => Given::Overrides(vec![("x".into(), OptionValue::Str("y".into()))]),
+                OptionKind::Names => Given::Names(vec!["speed".into()]),
             };
             (option.set)(&mut options, given).unwrap();
         }

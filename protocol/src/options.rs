@@ -23,6 +23,8 @@ pub enum OptionKind {
     Choice(fn() -> Vec<String>),
     /// Dotted scenario keys and their values.
     Overrides,
+    /// A list of names.
+    Names,
 }
 
 impl OptionKind {
@@ -34,6 +36,7 @@ impl OptionKind {
             OptionKind::Pair => "two whole numbers".into(),
             OptionKind::Choice(names) => format!("one of {}", names().join(", ")),
             OptionKind::Overrides => "dotted scenario keys and their values".into(),
+            OptionKind::Names => "a list of names".into(),
         }
     }
 }
@@ -52,6 +55,8 @@ pub enum Given {
     Name(String),
     /// For `Overrides`.
     Overrides(Vec<(String, OptionValue)>),
+    /// For `Names`.
+    Names(Vec<String>),
 }
 
 /// One create option: what `CREATE_OPTIONS` holds per field of `CreateOptions`.
@@ -165,6 +170,16 @@ impl OptionField for Vec<(String, OptionValue)> {
     }
 }
 
+impl OptionField for Option<Vec<String>> {
+    const KIND: OptionKind = OptionKind::Names;
+    fn read(given: Given) -> Result<Self, String> {
+        match given {
+            Given::Names(names) => Ok(Some(names)),
+            other => Err(misread(Self::KIND, &other)),
+        }
+    }
+}
+
 /// `CreateOptions` and `CREATE_OPTIONS` from one list of documented fields.
 macro_rules! create_options {
     ($($(#[doc = $doc:literal])+ $field:ident: $ty:ty,)+) => {
@@ -236,6 +251,13 @@ create_options! {
     /// or more (a frame 600 wide shows at least 30 m), so that a frame costs no more than
     /// a default one may.
     render_window: Option<u32>,
+    /// Only these info keys, in the infos' own order, instead of all (version 12): for
+    /// vectorised training that carries infos through pipes, `["end_reason",
+    /// "episode_done", "episode_success", "episode_return"]` say, which then keep that
+    /// fixed schema. Each must be a key the env's infos have (`info::SCHEMA`, the `expert`
+    /// keys with `expert`, `gt.<car>.<count>` with `diagnostics`); an unknown one is
+    /// refused at creation (`InvalidOption`).
+    info_keys: Option<Vec<String>>,
 }
 
 #[cfg(test)]
@@ -304,7 +326,8 @@ mod tests {
                 "diagnostics",
                 "record",
                 "explain",
-                "render_window"
+                "render_window",
+                "info_keys"
             ]
         );
         assert_eq!(option("render_size").wire, "Option<(u32, u32)>");
@@ -317,7 +340,11 @@ mod tests {
         (option("max_cycles").set)(&mut options, Given::Count(9)).unwrap();
         assert_eq!(options, CreateOptions { explain: true, max_cycles: Some(9), ..CreateOptions::default() });
         let last = encode(&options);
-        assert_eq!(&last[last.len() - 4..], [0, 0, 1, 0], "diagnostics, record, explain, render_window end the bytes");
+        assert_eq!(
+            &last[last.len() - 5..],
+            [0, 0, 1, 0, 0],
+            "diagnostics, record, explain, render_window, info_keys end the bytes"
+        );
     }
 
     #[test]

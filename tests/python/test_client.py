@@ -545,6 +545,31 @@ def test_every_agents_infos_keep_one_schema_of_numbers_from_reset_to_the_last_st
     env.close()
 
 
+SUMMARY = ["end_reason", "episode_done", "episode_success", "episode_return"]
+
+
+def test_info_keys_keep_only_the_named_keys_on_every_step_and_the_default_keeps_the_schema():
+    sparse = highway_arena.vector_env("merge", num_envs=2, max_cycles=5, info_keys=list(reversed(SUMMARY)))
+    full = highway_arena.vector_env("merge", num_envs=2, max_cycles=5)
+    # In the schema's order, whatever the order asked; Gymnasium adds each key's mask.
+    named = SUMMARY + [f"_{key}" for key in SUMMARY]
+    _, infos = sparse.reset(seed=0)
+    assert sorted(infos) == sorted(named), list(infos)
+    _, full_infos = full.reset(seed=0)
+    assert [key for key in full_infos if not key.startswith("_")][: len(highway_arena.INFO_KEYS)] == (
+        highway_arena.INFO_KEYS
+    )
+    for _ in range(5):
+        _, _, _, _, infos = sparse.step(np.array([1, 1]))
+        _, _, _, _, full_infos = full.step(np.array([1, 1]))
+        assert [key for key in infos if not key.startswith("_")] == SUMMARY
+        for key in SUMMARY:
+            assert np.array_equal(infos[key], full_infos[key]), key
+    assert infos["episode_done"].all() and (infos["episode_return"] > 0).all()
+    sparse.close()
+    full.close()
+
+
 def test_the_env_options_are_the_protocols_create_options_but_the_two_taken_their_own_way():
     assert list(highway_arena.ENV_OPTIONS) == [
         "action_type",
@@ -556,6 +581,7 @@ def test_the_env_options_are_the_protocols_create_options_but_the_two_taken_thei
         "diagnostics",
         "explain",
         "render_window",
+        "info_keys",
     ]
     assert highway_arena.ENV_OPTIONS["max_cycles"] is None and highway_arena.ENV_OPTIONS["explain"] is False
 
@@ -571,6 +597,7 @@ WRONG_OPTION = {
     "expert": ("pareto", ValueError, r"^expert: unknown game 'pareto': use one of nash, stackelberg"),
     "policy": ("calm", ValueError, r"^policy: unknown built-in policy 'calm'"),
     "render_window": (5, highway_arena.ScenarioError, r"render_window 5 must be within 10..=10000 \(m\)"),
+    "info_keys": (["sped"], highway_arena.ScenarioError, r"info_keys: no info key 'sped'; the keys are speed, lane"),
 }
 
 

@@ -401,6 +401,20 @@ async fn every_kind_of_bad_input_gets_its_coded_error_and_the_server_keeps_servi
         }
         other => panic!("{other:?}"),
     }
+    // merge.toml's text sent as overtake-random would label every result overtake-random.
+    let merge = include_str!("../../scenarios/merge.toml");
+    let misnamed = |name: &str| ScenarioSource::Inline { file_name: name.into(), text: merge.into() };
+    match client.create_env(harness.server.id(), misnamed("overtake-random"), CreateOptions::default()).await {
+        Err(ClientError::Server(e)) => {
+            assert_eq!(e.code, ErrorCode::InvalidScenario);
+            assert!(e.message.contains("declares name = \"merge\" but was sent as 'overtake-random'"), "{}", e.message);
+        }
+        other => panic!("{other:?}"),
+    }
+    for taken in ["merge", "my-merge.toml"] {
+        let env = client.create_env(harness.server.id(), misnamed(taken), CreateOptions::default()).await;
+        env.unwrap_or_else(|e| panic!("{taken}: {e}")).close().await.unwrap();
+    }
     let bad_override =
         CreateOptions { overrides: vec![("vehicle.ec_0.lane".into(), OptionValue::Int(9))], ..Default::default() };
     let refused = client.create_env(harness.server.id(), ScenarioSource::Named("merge".into()), bad_override).await;

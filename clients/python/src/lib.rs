@@ -28,7 +28,7 @@ pyo3::create_exception!(
     _core,
     ArenaError,
     PyRuntimeError,
-    "An error from highway-arena: args are (code, message); code is the server's error code name, or Timeout, NoServer, Zenoh, Protocol."
+    "An error from highway-arena: args are (code, message); code is the server's error code name, or Timeout, NoServer, ServerGone, Zenoh, Protocol, Forked."
 );
 
 fn to_py_err(error: ClientError) -> PyErr {
@@ -39,6 +39,7 @@ fn to_py_err(error: ClientError) -> PyErr {
         ClientError::ServerGone { .. } => "ServerGone".to_string(),
         ClientError::Zenoh(_) => "Zenoh".to_string(),
         ClientError::Protocol(_) => "Protocol".to_string(),
+        ClientError::Forked { .. } => "Forked".to_string(),
     };
     let message = match &error {
         ClientError::Server(reply) => reply.message.clone(),
@@ -195,6 +196,14 @@ impl Client {
     }
 }
 
+/// Whether this process was forked from the one that opened this extension's first
+/// connection: then no connection works here (`Client` raises `Forked`), and the Python
+/// package connects through a fresh copy of the extension (highway_arena/_fork.py).
+#[pyfunction]
+fn forked() -> bool {
+    arena_client::forked()
+}
+
 /// A built-in policy's name read as the server reads it (`BuiltinPolicy`'s `FromStr`):
 /// ("gt", style or None for the learner's own, game) or ("idm", None, None); an unknown
 /// one is a ValueError listing the forms.
@@ -232,6 +241,7 @@ fn create_options(given: Option<&Bound<'_, PyDict>>) -> PyResult<CreateOptions> 
             }
             OptionKind::Choice(_) => Given::Name(value.extract().or_else(|_| Err(wrong()?))?),
             OptionKind::Overrides => Given::Overrides(overrides(&value)?),
+            OptionKind::Names => Given::Names(value.extract().or_else(|_| Err(wrong()?))?),
         };
         (option.set)(&mut options, given).map_err(|e| PyValueError::new_err(format!("{name}: {e}")))?;
     }
@@ -946,6 +956,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
         (option.name, default, option.kind.takes(), option.doc())
     });
     m.add("CREATE_OPTIONS", PyList::new(m.py(), options.collect::<Vec<_>>())?)?;
+    m.add_function(wrap_pyfunction!(forked, m)?)?;
     m.add_class::<Client>()?;
     m.add_class::<Env>()?;
     m.add_function(wrap_pyfunction!(builtin_policy, m)?)?;

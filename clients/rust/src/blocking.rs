@@ -1,5 +1,7 @@
 //! A blocking face on `Client` for callers without an async runtime (the Python
 //! extension, the CLI). It owns a small tokio multi-thread runtime, as Zenoh requires.
+//! In a child forked from the process that connected, every call fails at once
+//! (`ClientError::Forked`, see `fork`) instead of waiting for ever.
 
 use std::sync::Arc;
 
@@ -41,39 +43,46 @@ impl Client {
         self.runtime.block_on(future)
     }
 
+    /// Runs a call on its runtime, unless this process is a forked child (`fork`), where
+    /// the runtime's threads and Zenoh's do not exist.
+    fn run<T>(&self, call: impl std::future::Future<Output = Result<T>>) -> Result<T> {
+        crate::fork::check()?;
+        self.runtime.block_on(call)
+    }
+
     /// See `crate::Client::servers`.
     pub fn servers(&self) -> Result<Vec<String>> {
-        self.block_on(self.inner.servers())
+        self.run(self.inner.servers())
     }
 
     /// See `crate::Client::pick_server`.
     pub fn pick_server(&self) -> Result<String> {
-        self.block_on(self.inner.pick_server())
+        self.run(self.inner.pick_server())
     }
 
     /// See `crate::Client::pick_server_within`.
     pub fn pick_server_within(&self, wait: Duration) -> Result<String> {
-        self.block_on(self.inner.pick_server_within(wait))
+        self.run(self.inner.pick_server_within(wait))
     }
 
     /// See `crate::Client::server_info`.
     pub fn server_info(&self, server: &str) -> Result<ServerInfo> {
-        self.block_on(self.inner.server_info(server))
+        self.run(self.inner.server_info(server))
     }
 
     /// See `crate::Client::place`.
     pub fn place(&self, count: usize) -> Result<Vec<String>> {
-        self.block_on(self.inner.place(count))
+        self.run(self.inner.place(count))
     }
 
     /// See `crate::Client::server_infos`.
     pub fn server_infos(&self) -> Result<Vec<ServerInfo>> {
-        self.block_on(self.inner.server_infos())
+        self.run(self.inner.server_infos())
     }
 
     /// See `crate::Client::create_env`.
     pub fn create_env(&self, server: &str, scenario: ScenarioSource, options: CreateOptions) -> Result<Env> {
-        let env = self.block_on(self.inner.create_env(server, scenario, options))?;
+        let env = self.run(self.inner.create_env(server, scenario, options))?;
         Ok(Env { client: self.clone(), env })
     }
 
@@ -84,12 +93,27 @@ impl Client {
         actions: Vec<Vec<(String, Action)>>,
     ) -> Result<Vec<Result<StepReply>>> {
         let mut remotes: Vec<&mut crate::RemoteEnv> = envs.iter_mut().map(|e| &mut e.env).collect();
-        self.block_on(self.inner.step_batch(&mut remotes, actions))
+        self.run(self.inner.step_batch(&mut remotes, actions))
     }
 
-    /// See `crate::Client::close`.
+    /// See `crate::Client::close`. In a forked child there is nothing to close: the
+    /// session is the parent's.
     pub fn close(&self) -> Result<()> {
-        self.runtime.block_on(self.inner.close())
+        if crate::fork::forked() {
+            return Ok(());
+        }
+        self.run(self.inner.close())
+    }
+}
+
+impl Drop for Client {
+    /// In a forked child the runtime and the session are leaked: dropping either waits on
+    /// threads that only the parent has.
+    fn drop(&mut self) {
+        if crate::fork::forked() {
+            std::mem::forget(Arc::clone(&self.runtime));
+            std::mem::forget(self.inner.clone());
+        }
     }
 }
 
@@ -113,46 +137,46 @@ impl Env {
 
     /// See `crate::RemoteEnv::reset`.
     pub fn reset(&mut self, seed: Option<u64>, overrides: Vec<(String, OptionValue)>) -> Result<ResetReply> {
-        self.client.runtime.block_on(self.env.reset(seed, overrides))
+        self.client.run(self.env.reset(seed, overrides))
     }
 
     /// See `crate::RemoteEnv::step`.
     pub fn step(&mut self, actions: Vec<(String, Action)>) -> Result<StepReply> {
-        self.client.runtime.block_on(self.env.step(actions))
+        self.client.run(self.env.step(actions))
     }
 
     /// See `crate::RemoteEnv::render`.
     pub fn render(&self, mode: RenderMode, follow: Option<&str>) -> Result<Frame> {
-        self.client.runtime.block_on(self.env.render(mode, follow))
+        self.client.run(self.env.render(mode, follow))
     }
 
     /// See `crate::RemoteEnv::statistics`.
     pub fn statistics(&self) -> Result<EnvStatistics> {
-        self.client.runtime.block_on(self.env.statistics())
+        self.client.run(self.env.statistics())
     }
 
     /// See `crate::RemoteEnv::state`.
     pub fn state(&self) -> Result<Observation> {
-        self.client.runtime.block_on(self.env.state())
+        self.client.run(self.env.state())
     }
 
     /// See `crate::RemoteEnv::record`.
     pub fn record(&self, on: bool) -> Result<Option<arena_protocol::WorldStart>> {
-        self.client.runtime.block_on(self.env.record(on))
+        self.client.run(self.env.record(on))
     }
 
     /// See `crate::RemoteEnv::snapshot`.
     pub fn snapshot(&self) -> Result<Vec<u8>> {
-        self.client.runtime.block_on(self.env.snapshot())
+        self.client.run(self.env.snapshot())
     }
 
     /// See `crate::RemoteEnv::restore`.
     pub fn restore(&mut self, snapshot: Vec<u8>) -> Result<ResetReply> {
-        self.client.runtime.block_on(self.env.restore(snapshot))
+        self.client.run(self.env.restore(snapshot))
     }
 
     /// See `crate::RemoteEnv::close`.
     pub fn close(&mut self) -> Result<()> {
-        self.client.runtime.block_on(self.env.close())
+        self.client.run(self.env.close())
     }
 }

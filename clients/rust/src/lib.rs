@@ -24,7 +24,10 @@
 #![warn(missing_docs)]
 
 pub mod blocking;
+mod fork;
 pub mod placement;
+
+pub use fork::forked;
 
 use std::fmt;
 use std::sync::Arc;
@@ -72,6 +75,14 @@ pub enum ClientError {
     Server(ErrorReply),
     /// Occurs when a reply cannot be decoded (a server of another version, say).
     Protocol(String),
+    /// Occurs in a child made by `fork()` of a process that had opened a Zenoh session:
+    /// Zenoh's runtime threads are not in the child, so no session can work there.
+    Forked {
+        /// The process that opened the first session.
+        parent: u32,
+        /// This process.
+        child: u32,
+    },
 }
 
 impl fmt::Display for ClientError {
@@ -95,6 +106,12 @@ impl fmt::Display for ClientError {
             ),
             ClientError::Server(reply) => write!(f, "{reply}"),
             ClientError::Protocol(message) => write!(f, "protocol: {message}"),
+            ClientError::Forked { parent, child } => write!(
+                f,
+                "process {child} was forked from process {parent} after that one opened a Zenoh session; Zenoh's \
+                 runtime threads do not survive fork(), so no connection can be opened or used here: start worker \
+                 processes with the 'spawn' (or 'forkserver') start method, or fork them before connecting"
+            ),
         }
     }
 }
@@ -143,6 +160,7 @@ impl Client {
     pub async fn connect(flags: &ConnectionFlags) -> Result<Client> {
         let config = flags.zenoh_config(Role::Client).map_err(ClientError::Zenoh)?;
         let user = login_user(&config);
+        fork::starting_zenoh()?;
         let session = zenoh::open(config).await.map_err(zenoh_error)?;
         Client::with_session(session, &flags.prefix, user, flags.timeout(), flags.retries).await
     }

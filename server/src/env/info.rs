@@ -76,6 +76,39 @@ pub fn info(world: &World, id: VehicleId, outcome: &Outcome) -> Info {
     info
 }
 
+/// The keys of `asked` (the env's `info_keys`) if each is one its infos have: the
+/// schema's, the expert's with `expert`, a game-theoretic car's counts (`gt.<car>.<count>`)
+/// with `diagnostics`; else what is wrong with the first that is not.
+pub fn kept_keys(asked: &[String], expert: bool, diagnostics: bool) -> Result<Vec<String>, String> {
+    let schema = || key::SCHEMA.iter().map(|(name, _)| *name).collect::<Vec<_>>().join(", ");
+    for asked in asked {
+        let in_schema = key::SCHEMA.iter().any(|(name, _)| name == asked);
+        let of_expert = key::EXPERT.iter().any(|(name, _)| name == asked);
+        let of_diagnostics = asked
+            .strip_prefix("gt.")
+            .and_then(|rest| rest.rsplit_once('.'))
+            .is_some_and(|(car, count)| !car.is_empty() && DIAGNOSTIC_COUNTS.contains(&count));
+        if in_schema || (of_expert && expert) || (of_diagnostics && diagnostics) {
+            continue;
+        }
+        return Err(if of_expert {
+            format!("info_keys: '{asked}' is in infos only with the `expert` option; give expert= too, or leave it out")
+        } else if of_diagnostics {
+            format!("info_keys: '{asked}' is in infos only with `diagnostics`; turn it on, or leave the key out")
+        } else {
+            format!("info_keys: no info key '{asked}'; the keys are {}", schema())
+        });
+    }
+    Ok(asked.to_vec())
+}
+
+/// Keeps only `kept`'s keys of `info`, in its own order (`None` keeps all).
+pub fn keep(info: &mut Info, kept: Option<&[String]>) {
+    if let Some(kept) = kept {
+        info.values.retain(|(name, _)| kept.contains(name));
+    }
+}
+
 /// More than the entries of any info (the schema, the expert's keys, a few cars'
 /// diagnostics), so an info is allocated once.
 const ENTRIES: usize = key::SCHEMA.len() + key::EXPERT.len() + 2 * DIAGNOSTIC_COUNTS.len();

@@ -117,6 +117,8 @@ pub struct Env {
     policy: Option<BuiltinPolicy>,
     /// Whether infos carry the game-theoretic cars' solver counts.
     diagnostics: bool,
+    /// The only info keys replies carry (`info::kept_keys`); `None`: all.
+    info_keys: Option<Vec<String>>,
     /// Whether replies carry the world's frames (`recording`).
     recording: bool,
     recorder: recording::Recorder,
@@ -223,6 +225,12 @@ impl Env {
         }
         let render_window =
             render::window(options.render_window, render_size.1).map_err(|e| error(ErrorCode::InvalidScenario, e))?;
+        let info_keys = options
+            .info_keys
+            .as_deref()
+            .map(|asked| info::kept_keys(asked, options.expert.is_some(), options.diagnostics))
+            .transpose()
+            .map_err(|e| error(ErrorCode::InvalidOption, e))?;
         let agents = scenario
             .agents()
             .map(|spec| AgentSlot {
@@ -254,6 +262,7 @@ impl Env {
             expert: options.expert.map(game),
             policy: options.policy,
             diagnostics: options.diagnostics,
+            info_keys,
             recording: options.record,
             recorder: recording::Recorder::default(),
             world: None,
@@ -271,6 +280,11 @@ impl Env {
         let scenario = Scenario::parse(file, text, &overrides::converted(&options.overrides))
             .map_err(|e| error(ErrorCode::InvalidScenario, e.to_string()))?;
         Env::new(scenario, options, entropy)
+    }
+
+    /// The name its scenario declares.
+    pub fn scenario_name(&self) -> &str {
+        &self.scenario.name
     }
 
     /// The world, once reset.
@@ -583,7 +597,8 @@ impl Env {
         }
     }
 
-    /// Agent `i`'s info: the schema's keys, then those the env's options turn on.
+    /// Agent `i`'s info: the schema's keys, then those the env's options turn on; only
+    /// `info_keys` of them if the env names some.
     fn info(&mut self, world: &mut World, i: usize, outcome: &info::Outcome) -> arena_protocol::Info {
         let (action, agent) = (self.agents[i].action, &mut self.state.agents[i]);
         let mut info = info::info(world, agent.vehicle, outcome);
@@ -595,6 +610,7 @@ impl Env {
         if self.diagnostics {
             info::add_diagnostics(&mut info, world);
         }
+        info::keep(&mut info, self.info_keys.as_deref());
         info
     }
 

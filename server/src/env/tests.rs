@@ -1501,3 +1501,31 @@ fn the_own_row_shows_how_near_the_end_of_the_agents_lane_is() {
         assert_eq!(lane_end_nearness(&step.observation), 0.0);
     }
 }
+
+#[test]
+fn info_keys_keep_only_the_named_keys_and_unknown_ones_are_refused_by_name() {
+    let named = ["episode_return", "end_reason"].map(String::from).to_vec();
+    let mut env = env("merge", CreateOptions { info_keys: Some(named), ..CreateOptions::default() });
+    let start = env.reset(Some(0), NO_OPTIONS).unwrap();
+    let keys = |info: &Info| info.values.iter().map(|(k, _)| k.clone()).collect::<Vec<_>>();
+    // In the infos' own order (end_reason comes before the episode's figures), on reset
+    // and on every step.
+    assert_eq!(keys(&start[0].info), ["end_reason", "episode_return"]);
+    let step = env.step(&meta("ec_0", 1)).unwrap();
+    assert_eq!(keys(&step[0].info), ["end_reason", "episode_return"]);
+    let refuse = |keys: &[&str], expert| {
+        let options = CreateOptions {
+            info_keys: Some(keys.iter().map(|k| k.to_string()).collect()),
+            expert,
+            ..CreateOptions::default()
+        };
+        Env::new(env.scenario.clone(), &options, 0).err()
+    };
+    let unknown = refuse(&["speed", "sped"], None).expect("an unknown key is refused");
+    assert_eq!(unknown.code, ErrorCode::InvalidOption);
+    assert!(unknown.message.contains("'sped'") && unknown.message.contains("speed, lane"), "{unknown}");
+    let expert = refuse(&["expert_action"], None).expect("an expert key without expert is refused");
+    assert!(expert.message.contains("`expert` option"), "{expert}");
+    assert!(refuse(&["expert_action"], Some(arena_protocol::Game::Stackelberg)).is_none());
+    assert!(refuse(&["gt.ac.plans"], None).expect("a count without diagnostics").message.contains("diagnostics"));
+}

@@ -15,7 +15,7 @@ import textwrap
 import types
 from typing import NamedTuple
 
-from . import _core
+from . import _core, _fork
 from ._errors import InvalidEndpointError, ServerNotFoundError, clean, translate, translated
 
 # Connection defaults are defined once, in the Rust protocol crate.
@@ -225,7 +225,7 @@ class Connection:
         zenoh_config = settings["zenoh_config"]
         where = ", ".join(endpoints)
         try:
-            self.client = _core.Client(
+            self.client = _fork.extension().Client(
                 endpoints,
                 prefix=prefix,
                 timeout=timeout,
@@ -233,8 +233,10 @@ class Connection:
                 zenoh_config=None if zenoh_config is None else str(zenoh_config),
                 mode=settings["mode"],
             )
-        except _core.ArenaError as error:
-            _, message = error.args
+        except _fork.errors as error:
+            code, message = error.args
+            if code == "Forked":
+                raise translate(error) from None
             if "Unable to connect" in message:
                 raise ServerNotFoundError("NoServer", no_session_advice(where)) from None
             raise InvalidEndpointError(
@@ -244,7 +246,7 @@ class Connection:
             self.client.pick_server(wait=min(connect_timeout, timeout))
             # Of every server found, the least loaded (see ``place``).
             self.server = self.client.place(1)[0]
-        except _core.ArenaError as error:
+        except _fork.errors as error:
             self.client.close()
             code, _ = error.args
             if code != "NoServer":

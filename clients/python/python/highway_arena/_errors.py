@@ -5,7 +5,7 @@ from __future__ import annotations
 import functools
 import re
 
-from . import _core
+from . import _core, _fork
 
 
 class ArenaError(RuntimeError):
@@ -52,6 +52,12 @@ class SnapshotError(ArenaError, ValueError):
     another scenario, env options or protocol version (the message names which)."""
 
 
+class ForkedProcessError(ArenaError):
+    """This process was made by ``fork()`` from one that had opened a connection: Zenoh's
+    runtime threads did not come along, so no connection can work here. Start worker
+    processes with the ``spawn`` (or ``forkserver``) start method."""
+
+
 class EnvClosedError(ArenaError):
     """The env was closed (by this client, by idling, or because the server forgot it)."""
 
@@ -73,11 +79,16 @@ _BY_CODE = {
     "EnvClosed": EnvClosedError,
     "UnknownEnv": EnvClosedError,
     "InvalidSnapshot": SnapshotError,
+    "Forked": ForkedProcessError,
 }
 
 _HINTS = {
     "AgentNotLive": " (only agents in env.agents may act; reset when env.agents is empty)",
     "UnknownScenario": " (or pass scenario_text= with a scenario file's TOML)",
+    "Forked": (
+        ' (multiprocessing.get_context("spawn"); Gymnasium: AsyncVectorEnv(env_fns, context="spawn"); '
+        'Stable-Baselines3: SubprocVecEnv(env_fns, start_method="spawn"))'
+    ),
     "TooManyEnvs": " (close envs you no longer use, or start arena-server with a larger --max-envs or --max-envs-per-client)",
 }
 
@@ -102,7 +113,7 @@ def translated(function):
     def wrapper(*args, **kwargs):
         try:
             return function(*args, **kwargs)
-        except _core.ArenaError as error:
+        except _fork.errors as error:
             raise translate(error) from None
 
     return wrapper

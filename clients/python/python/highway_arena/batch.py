@@ -4,7 +4,7 @@ a ParallelEnv's give. Finished envs reset themselves."""
 
 from __future__ import annotations
 
-from . import _convert, _core
+from . import _convert, _fork
 from ._connection import Connection, env_options, keywords, split, takes_connection_keywords, takes_env_options
 from ._errors import translate, translated
 from ._recordings import EnvRecordings, recording_meta
@@ -73,7 +73,7 @@ class BatchEnv:
         results = self._connection.client.step_batch(self._envs, wire)
         out = []
         for i, (env, result) in enumerate(zip(self._envs, results)):
-            if isinstance(result, _core.ArenaError):
+            if isinstance(result, _fork.errors):
                 raise translate(result)
             observations, rewards, terminations, truncations, infos, agents = result
             if self._recordings is not None:

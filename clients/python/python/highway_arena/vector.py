@@ -13,7 +13,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array
 
-from . import _convert, _core
+from . import _convert, _fork
 from ._connection import Connection, env_options, keywords, split, takes_connection_keywords, takes_env_options
 from ._errors import translate, translated
 from ._recordings import EnvRecordings, recording_meta
@@ -160,7 +160,7 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         truncations = np.zeros(self.num_envs, dtype=np.bool_)
         infos = {}
         for i, sent, result in zip(stepping, wire, results):
-            if isinstance(result, _core.ArenaError):
+            if isinstance(result, _fork.errors):
                 raise translate(result)
             obs, reward, terminated, truncated, info, _agents = result
             if self._recordings is not None:

@@ -16,6 +16,10 @@ mod soak;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// On an error, print where it came from too (its backtrace, when RUST_BACKTRACE=1);
+    /// RUST_LOG set does the same.
+    #[arg(short, long, global = true)]
+    verbose: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -69,8 +73,20 @@ fn connect(
     Ok((client, server))
 }
 
-fn main() -> anyhow::Result<()> {
-    match Cli::parse().command {
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let verbose = cli.verbose || std::env::var_os("RUST_LOG").is_some();
+    match run(cli.command) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(error) => {
+            report(&error, verbose);
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Bench(args) => bench::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Play(args) => play::run(args),
@@ -78,5 +94,22 @@ fn main() -> anyhow::Result<()> {
         Command::Soak(args) => soak::run(args),
         Command::Paper(args) => paper::run_paper(args),
         Command::Calibrate(args) => paper::run_calibrate(args),
+    }
+}
+
+/// An error and its causes; the backtrace anyhow took (with RUST_BACKTRACE=1) only when
+/// asked, since it says where in our code the error arose, not what the user should do.
+fn report(error: &anyhow::Error, verbose: bool) {
+    if verbose {
+        eprintln!("Error: {error:?}");
+        return;
+    }
+    eprintln!("Error: {error}");
+    let causes: Vec<_> = error.chain().skip(1).collect();
+    if !causes.is_empty() {
+        eprintln!("\nCaused by:");
+        for (i, cause) in causes.iter().enumerate() {
+            eprintln!("    {i}: {cause}");
+        }
     }
 }

@@ -138,7 +138,7 @@ impl Scenario {
             Some(text) if overrides.is_empty() => toml::from_str(text),
             _ => ScenarioFile::deserialize(toml::Value::Table(table)),
         }
-        .map_err(|e: toml::de::Error| fail(ScenarioErrorKind::Syntax(e.to_string())))?;
+        .map_err(|e: toml::de::Error| fail(blame(overrides, e.to_string())))?;
         raw.validate().map_err(fail)
     }
 
@@ -146,6 +146,30 @@ impl Scenario {
     pub fn agents(&self) -> impl Iterator<Item = &VehicleSpec> {
         self.vehicles.iter().filter(|v| matches!(v.driver, DriverSpec::Agent(_)))
     }
+}
+
+/// A table that does not deserialize, as the override that set what its `message`
+/// names, so the user reads the key they wrote: an unknown field (`unknown field
+/// \`sped\``: the last override with a part `sped`), or a wrong value (`in
+/// \`vehicle.speed\``, which leaves out the vehicle's name: the last override from
+/// `vehicle.` to `.speed`); else as the file's error.
+fn blame(overrides: &[(String, toml::Value)], message: String) -> ScenarioErrorKind {
+    let after = |text: &str| message.rsplit_once(text).and_then(|(_, rest)| rest.split_once('`')).map(|(q, _)| q);
+    let (field, path) = (after("unknown field `"), after("in `"));
+    let names = |key: &str| match (field, path) {
+        (Some(field), _) => key.split('.').any(|part| part == field),
+        (None, Some(path)) => ends(key) == ends(path),
+        (None, None) => false,
+    };
+    match overrides.iter().rev().find(|(key, _)| names(key)) {
+        Some((key, _)) => ScenarioErrorKind::BadOverride { key: key.clone(), message: message.trim_end().to_string() },
+        None => ScenarioErrorKind::Syntax(message),
+    }
+}
+
+/// The first and last parts of a dotted key.
+fn ends(key: &str) -> (Option<&str>, Option<&str>) {
+    (key.split('.').next(), key.rsplit('.').next())
 }
 
 #[cfg(test)]

@@ -191,6 +191,14 @@ fn bad_overrides_are_refused_like_bad_files() {
     );
     assert!(refuse("sim.bogus", toml::Value::Integer(1)).contains("bogus"));
     assert!(refuse("vehicle.a.lane", toml::Value::Integer(9)).contains("vehicle 'a' is on lane 9"));
+    // A misspelt field is refused naming the override that brought it, as the user wrote it.
+    let misspelt = refuse("vehicle.a.sped", toml::Value::Float(20.0));
+    assert!(
+        misspelt.starts_with("invalid scenario 'test.toml': override `vehicle.a.sped`: unknown field `sped`"),
+        "{misspelt}"
+    );
+    let wrong_type = refuse("vehicle.a.speed", toml::Value::String("fast".into()));
+    assert!(wrong_type.contains("vehicle.a.speed"), "{wrong_type}");
 }
 
 /// A value of arrays nested `n` deep around an integer.
@@ -219,7 +227,13 @@ fn nesting_past_max_depth_is_refused_in_text_keys_and_values_and_not_below() {
     let key = |parts: usize| vec!["x"; parts].join(".");
     let one = |key: String, value: toml::Value| vec![(key, value)];
     let below = kind_of(GOOD, &one(key(MAX_SCENARIO_DEPTH), toml::Value::Integer(1)));
-    assert!(matches!(below, ScenarioErrorKind::Syntax(ref e) if e.contains('x')), "{below:?}");
+    let unknown = |kind: &ScenarioErrorKind| match kind {
+        ScenarioErrorKind::BadOverride { key: named, message } => {
+            *named == key(MAX_SCENARIO_DEPTH) && message.contains("unknown field `x`")
+        }
+        _ => false,
+    };
+    assert!(unknown(&below), "refused for its unknown field, naming the override: {below:?}");
     let above = kind_of(GOOD, &one(key(MAX_SCENARIO_DEPTH + 1), toml::Value::Integer(1)));
     assert!(matches!(above, ScenarioErrorKind::BadOverride { ref message, .. } if message.contains("17 parts")));
     // The key that overflowed the server's stack: refused before any table is made.
@@ -228,7 +242,7 @@ fn nesting_past_max_depth_is_refused_in_text_keys_and_values_and_not_below() {
 
     // A value nests from its key's depth: `sim.x` is depth 2, so its arrays start at 3.
     let below = kind_of(GOOD, &one("sim.x".into(), nested_arrays(MAX_SCENARIO_DEPTH - 2)));
-    assert!(matches!(below, ScenarioErrorKind::Syntax(_)), "{below:?}");
+    assert!(matches!(below, ScenarioErrorKind::BadOverride { ref key, .. } if key == "sim.x"), "{below:?}");
     let above = kind_of(GOOD, &one("sim.x".into(), nested_arrays(MAX_SCENARIO_DEPTH - 1)));
     assert_eq!(above, ScenarioErrorKind::TooDeep { depth: MAX_SCENARIO_DEPTH + 1 });
 }

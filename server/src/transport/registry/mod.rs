@@ -330,7 +330,11 @@ impl Registry {
             })?,
             ScenarioSource::Inline { file_name, text } => (file_name.as_str(), text.as_str()),
         };
-        Env::from_text(file, text, options, rand::random::<u64>())
+        let env = Env::from_text(file, text, options, rand::random::<u64>())?;
+        if let ScenarioSource::Inline { file_name, .. } = &source {
+            inline_named_as_declared(file_name, env.scenario_name())?;
+        }
+        Ok(env)
     }
 
     /// Whether one more env fits the server (holding `open`) and the party's share.
@@ -510,4 +514,21 @@ fn wrong_version(version: u16) -> ErrorReply {
         format!("request speaks protocol {version}, this server speaks {PROTOCOL_VERSION}; upgrade the older side"),
         true,
     )
+}
+
+/// An inline scenario is named by its file (`*.toml`, which only names it in messages) or
+/// by the `name` its text declares: any other name would label an env, and the results
+/// and recordings made with it, as a scenario its text is not.
+fn inline_named_as_declared(given: &str, declared: &str) -> Result<(), ErrorReply> {
+    if given == declared || given.ends_with(".toml") {
+        return Ok(());
+    }
+    Err(error(
+        ErrorCode::InvalidScenario,
+        format!(
+            "the scenario text declares name = \"{declared}\" but was sent as '{given}': send it as '{declared}' \
+             (or as a file name ending in .toml), or change its name"
+        ),
+        true,
+    ))
 }

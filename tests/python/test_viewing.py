@@ -271,3 +271,57 @@ def test_batch_and_vector_envs_record_each_env_into_its_own_file(tmp_path):
     for path in paths:
         held = view.summary(path)
         assert (held["episodes"], held["frames"]) == (1, 1 + 3), "begun after the reset: the world then, 3 steps"
+
+
+def blueprint_of(path):
+    """The file's layout: per view, (class, name, origin); and the time panel's timeline."""
+    reader = rr.chunk.RrdReader(str(path))
+    (store,) = reader.blueprints()
+    views, timeline = [], None
+    for chunk in reader.stream(store=store):
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+
+        def first(column):
+            return batch.column(column)[0].as_py()[0] if column in names else None
+
+        if "ViewBlueprint:class_identifier" in names:
+            views.append(
+                (
+                    first("ViewBlueprint:class_identifier"),
+                    first("ViewBlueprint:display_name"),
+                    first("ViewBlueprint:space_origin"),
+                )
+            )
+        if "TimePanelBlueprint:timeline" in names:
+            timeline = first("TimePanelBlueprint:timeline")
+    return views, timeline
+
+
+def test_the_road_view_follows_a_car_at_every_frame_and_each_explained_car_has_its_panel(tmp_path):
+    # Issue 45: a whole-episode recording opened on an empty road (a fixed window where
+    # the first frame was); the panel showed one line of its table.
+    for follow, followed in ((None, "ac_0"), ("ec", "ec")):
+        path = tmp_path / f"merge-ac-{followed}.rrd"
+        env = highway_arena.parallel_env("merge-ac", explain=True, record=path, render_follow=follow)
+        env.reset(seed=5)
+        env.reset(seed=6)  # a second episode follows on the same timeline
+        while env.agents:
+            env.step({"ac_0": IDLE})
+        env.close()
+        frame = table(path)
+        follows = "/world/follow:Transform3D:translation"
+        car = f"/world/vehicles/{followed}"
+        # At every frame of both episodes, the view's frame is on the followed car.
+        times = times_of(frame, f"{car}:x")
+        assert np.array_equal(times_of(frame, follows), times)
+        for time_s in times[:: max(1, len(times) // 25)]:
+            x, y, _ = np.asarray(at(frame, time_s, follows)[0])
+            where = (at(frame, time_s, f"{car}:x")[0], at(frame, time_s, f"{car}:y")[0])
+            assert (x, y) == pytest.approx(where, abs=1e-3)  # a transform is float32
+        views, timeline = blueprint_of(path)
+        assert ("2D", "road", "/world/follow") in views
+        # One text view per explained car: a text view shows one document.
+        assert ("TextDocument", "ec explained", "/explain/ec") in views
+        assert timeline == recording.TIMELINE
+

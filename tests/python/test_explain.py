@@ -258,3 +258,20 @@ def test_explanations_name_the_vehicles():
             assert f"EC (leader) **{leader}**" in text
             if other is not None:
                 assert f"AC {other}," in text
+
+
+def test_a_recording_names_the_players_beside_the_tables(tmp_path):
+    path = tmp_path / "named.rrd"
+    env = highway_arena.parallel_env("merge-ac", explain=True, record=path)
+    env.reset(seed=5)
+    for _ in range(3):
+        env.step({"ac_0": IDLE})
+    env.close()
+    frame = rr.chunk.RrdReader(str(path)).stream().collect().reader(index=recording.TIMELINE).to_pandas()
+
+    def values(column):
+        return {v[0] for v in frame[column] if v is not None and len(v) > 0}
+
+    assert values("/world/vehicles/ec/plan:ec") == {"ec"}
+    assert values("/explain/ec/left:ac") == {"ac_0"}
+    assert values("/explain/ec/right:ac") == {"-"}

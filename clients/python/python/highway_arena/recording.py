@@ -28,15 +28,16 @@ episodes follow one another) and ``step`` (env steps since it began):
   ``plots/cost/<agent>/{safety,comfort,efficiency}`` (every step).
 - With ``explain=True`` (docs/viewing.md, "The AV explained"), at each game-theoretic
   decision: ``world/vehicles/<name>/plan``, the car's own predicted path at the
-  equilibrium it played (a line strip, with ``game``, ``role``, ``sigma``, ``accel``,
-  ``games_accel``, ``exact``, ``safety``, ``fallback``), and
-  ``world/vehicles/<name>/prediction``, the path it predicted for the other player;
-  ``explain/<name>``: the game as a markdown document (``explained_markdown``: cars by
-  name, each side's table row by row with AC's best reply and both costs there, and the
-  played row's cost the game minimised, named) and ``explain/<name>/<left|right>``:
-  each side's full game (``rows``, ``cols``, ``ec_accel``, ``ec_sigma``, ``ac_accel``,
-  ``ec_costs`` and ``ac_costs`` row-major with NaN where the search skipped a cell,
-  ``pruned``, ``row``, ``col``, ``exact``, ``chosen``).
+  equilibrium it played (a line strip, with ``game``, ``role``, ``ec`` (the game's EC
+  by name), ``sigma``, ``accel``, ``games_accel``, ``exact``, ``safety``,
+  ``fallback``), and ``world/vehicles/<name>/prediction``, the path it predicted for
+  the other player; ``explain/<name>``: the game as a markdown document
+  (``explained_markdown``: cars by name, each side's table row by row with AC's best
+  reply and both costs there, and the played row's cost the game minimised, named) and
+  ``explain/<name>/<left|right>``: each side's full game (``ac``, its AC by name, "-"
+  for none; ``rows``, ``cols``, ``ec_accel``, ``ec_sigma``, ``ac_accel``, ``ec_costs``
+  and ``ac_costs`` row-major with NaN where the search skipped a cell, ``pruned``,
+  ``row``, ``col``, ``exact``, ``chosen``).
 - ``events/collisions``: a red point where and when each collision happened, labelled
   with both cars and who was at fault; ``events/ends/<agent>``: where and why an agent's
   episode ended; ``events/log``: both as text.
@@ -445,6 +446,7 @@ class Recording:
                 rr.AnyValues(
                     game=e["game"],
                     role=e["role"],
+                    ec=self._name(e["ec"]),
                     sigma=int(e["sigma"]),
                     accel=float(e["accel"]),
                     games_accel=float(e["games_accel"]),
@@ -463,6 +465,7 @@ class Recording:
                 self._log(
                     f"explain/{name}/{side}",
                     rr.AnyValues(
+                        ac=self._name(t["adjacent"]),
                         rows=len(t["ec_actions"]),
                         cols=len(t["ac_actions"]),
                         ec_accel=np.asarray([a for a, _ in t["ec_actions"]], dtype=np.float64),

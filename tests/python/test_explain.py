@@ -250,10 +250,11 @@ def test_explanations_name_the_vehicles():
             if other is not None:
                 assert {t["adjacent_name"] for t in e["tables"]} <= {other, None}
                 assert any(t["adjacent_name"] == other for t in e["tables"])
-            # The panel names them as the dicts do.
+            # The panel names them as the dicts do; from the dict alone, the same text.
             names = {e["vehicle"]: e["vehicle_name"], e["ec"]: e["ec_name"]}
             names.update({t["adjacent"]: t["adjacent_name"] for t in e["tables"] if t["adjacent"] is not None})
             text = recording.explained_markdown(e, [names.get(i, "?") for i in range(max(names) + 1)])
+            assert recording.explained_markdown(e) == text
             assert text.startswith(f"### {me} at t = ")
             assert f"EC (leader) **{leader}**" in text
             if other is not None:

@@ -140,16 +140,25 @@ def _criterion(e, t) -> tuple:
     return "no pure equilibrium: EC's best row against AC's best replies", "best vs replies"
 
 
-def explained_markdown(e, names) -> str:
+def explained_markdown(e, names=None) -> str:
     """A decision (the extension's dict) as markdown, vehicles by name (``names``: the
-    episode's vehicle names in index order). Per side, one line per EC action still in
+    episode's vehicle names in index order; by default the dict's own ``vehicle_name``,
+    ``ec_name`` and tables' ``adjacent_name``): the text of a recording's panel. Per side, one line per EC action still in
     play: AC's best reply to it and both costs there; and, for the row played, the cost
     the game minimised: a Stackelberg leader's worst case over AC's near-best replies
     (at least the best reply's cost, so it may read higher than other rows' best-reply
     costs), a Nash game's equilibrium (AC's best reply: the same cell)."""
 
-    def name(index):
-        return vehicle_name(names, index)
+    if names is None:
+        named = {e["vehicle"]: e.get("vehicle_name"), e["ec"]: e.get("ec_name")}
+        named.update({t["adjacent"]: t.get("adjacent_name") for t in e["tables"] if t["adjacent"] is not None})
+
+        def name(index):
+            return named.get(index) or "-"
+    else:
+
+        def name(index):
+            return vehicle_name(names, index)
 
     me = name(e["vehicle"])
     follows = e["ec"] != e["vehicle"]

@@ -104,7 +104,13 @@ async fn an_explaining_env_sends_the_avs_decisions_and_the_same_episode() {
     let explaining = CreateOptions { explain: true, ..Default::default() };
     let mut on = harness.env_with(&client, "merge-ac", explaining).await;
     let mut off = harness.env_with(&client, "merge-ac", CreateOptions::default()).await;
-    assert_eq!(on.reset(Some(2), vec![]).await.unwrap(), off.reset(Some(2), vec![]).await.unwrap());
+    let (started, plain) = (on.reset(Some(2), vec![]).await.unwrap(), off.reset(Some(2), vec![]).await.unwrap());
+    assert_eq!(started.agents, plain.agents, "explained or not, the same start");
+    // Explaining, the reset names the vehicles the decisions point to by index.
+    assert!(plain.world.is_none());
+    let world = started.world.expect("explain: the world on reset");
+    let names: Vec<&str> = world.vehicles.iter().map(|v| v.name.as_str()).collect();
+    assert_eq!(names, ["ac_0", "ec"]);
     let mut played_against_ac = 0;
     for _ in 0..20 {
         let (a, b) = (on.step(meta("ac_0", 1)).await.unwrap(), off.step(meta("ac_0", 1)).await.unwrap());

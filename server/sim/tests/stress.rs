@@ -1,8 +1,7 @@
 //! The stress suite's fixed subset (issue 43, "Tests that must exist"): every family of
 //! scenarios/stress/ on `SEEDS`, measured as the suite measures it
 //! (`support/stress.rs`), and each of the issue's targets asserted on every family it
-//! applies to but those where the AV in the tree still misses it (`Target::misses`). The whole suite is
-//! `cargo run --release -p arena-sim --example stress`.
+//! applies to. The whole suite is `cargo run --release -p arena-sim --example stress`.
 
 #[path = "support/highway_gt.rs"]
 #[allow(dead_code)]
@@ -19,15 +18,11 @@ use stress::{Episode, FAMILIES, Family, find_family};
 /// The reset seeds every family runs here.
 const SEEDS: Range<u64> = 0..10;
 
-/// One of the issue's targets: the families it applies to, the episodes that miss it, and
-/// the families where the AV in the tree still misses it on `SEEDS` (docs/baselines.md,
-/// "Stress suite (issue 43)", gives their numbers); a family leaves `misses` when the AV
-/// holds the target there.
+/// One of the issue's targets: the families it applies to and the episodes that miss it.
 struct Target {
     name: &'static str,
     applies: fn(&Family) -> bool,
     missed: fn(&Episode) -> bool,
-    misses: &'static [&'static str],
 }
 
 const TARGETS: [Target; 6] = [
@@ -35,25 +30,21 @@ const TARGETS: [Target; 6] = [
         name: "no collision with a gt car at fault, by the new rule and the old one",
         applies: |f| !f.is_adversarial(),
         missed: |e| e.gt_at_fault + e.gt_at_fault_entry > 0,
-        misses: &[],
     },
     Target {
         name: "no gt car off the road or past the end of its lane",
         applies: |_| true,
         missed: |e| e.off_road_gt + e.lane_end_gt > 0,
-        misses: &[],
     },
     Target {
         name: "no gt car further than 0.5 m from its lane's centre outside a lane change",
         applies: |_| true,
         missed: |e| e.drift > 0,
-        misses: &[],
     },
     Target {
         name: "no gt car braking below -6 m/s^2 without a car within 2 s time to collision in or entering its path",
         applies: |_| true,
         missed: |e| e.phantom > 0,
-        misses: &["adversarial-cut-in", "adversarial-drift"],
     },
     Target {
         name: "the merging gt car merges, never at fault, never past the ramp's end",
@@ -62,14 +53,12 @@ const TARGETS: [Target; 6] = [
             e.merge
                 .is_none_or(|m| !m.merged || m.at_fault || matches!(m.ending, Some(Ending::LaneEnd | Ending::OffRoad)))
         },
-        misses: &[],
     },
     Target {
         name: "no collision with a gt car at fault that returning to its lane or braking at -6 m/s^2 from 1 s before \
                avoids",
         applies: Family::is_adversarial,
         missed: |e| e.avoidable > 0,
-        misses: &[],
     },
 ];
 
@@ -87,7 +76,7 @@ fn check(name: &str) {
     let family = find_family(name).unwrap();
     let episodes = episodes(family);
     let sum = |count: fn(&Episode) -> u32| episodes.iter().map(count).sum::<u32>();
-    for target in TARGETS.iter().filter(|t| (t.applies)(family) && !t.misses.contains(&name)) {
+    for target in TARGETS.iter().filter(|t| (t.applies)(family)) {
         let missed = failures(&episodes, target.missed);
         assert!(missed.is_empty(), "{name}: {}: {missed:?}", target.name);
     }
@@ -137,16 +126,6 @@ family_tests! {
     adversarial_cut_in_subset: "adversarial-cut-in",
     adversarial_drift_subset: "adversarial-drift",
     adversarial_close_gap_subset: "adversarial-close-gap",
-}
-
-#[test]
-fn each_target_lists_as_misses_only_families_it_applies_to() {
-    for target in &TARGETS {
-        for name in target.misses {
-            let family = find_family(name).unwrap_or_else(|e| panic!("{}: {e}", target.name));
-            assert!((target.applies)(family), "{} does not apply to {name}", target.name);
-        }
-    }
 }
 
 #[test]

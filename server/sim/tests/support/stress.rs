@@ -260,18 +260,20 @@ struct Sim {
 
 impl Sim {
     /// One control period: the script acts, then the world ticks; `sample` reads it after
-    /// the period's first tick, when every driver's decision of the period is applied.
-    fn period(&mut self, stepper: &mut Stepper, mut sample: impl FnMut(&World)) {
+    /// the period's first tick, when every driver's decision of the period is applied,
+    /// with each car's command before it (what the period's decisions saw).
+    fn period(&mut self, stepper: &mut Stepper, mut sample: impl FnMut(&World, &[f64])) {
         if let Some(script) = &mut self.script {
             script.act(&mut self.world, self.learner);
         }
+        let decided_on: Vec<f64> = self.world.vehicles().iter().map(|v| v.command.accel).collect();
         for tick in 0..self.world.params().substeps_per_control() {
             let seen = self.world.collisions().len();
             stepper.tick(&mut self.world);
             let time = self.world.time();
             self.crashes.extend(self.world.collisions()[seen..].iter().map(|&c| (time, c)));
             if tick == 0 {
-                sample(&self.world);
+                sample(&self.world, &decided_on);
             }
         }
     }
@@ -336,7 +338,7 @@ impl Track {
         }
     }
 
-    fn sample(&mut self, world: &World, notes: &mut Vec<String>) {
+    fn sample(&mut self, world: &World, seen: &[f64], notes: &mut Vec<String>) {
         let vehicle = world.vehicle(self.id);
         if vehicle.status != Status::Driving {
             return;
@@ -386,9 +388,9 @@ impl Track {
         }
         if vehicle.command.accel < HARD_BRAKING - 1e-9 {
             self.hard_braking = true;
-            if !self.phantom && !threatened(world, self.id) {
+            if !self.phantom && !threatened(world, seen, self.id) {
                 self.phantom = true;
-                let nearest = in_path(world, self.id).into_iter().min_by(|a, b| a.1.total_cmp(&b.1));
+                let nearest = in_path(world, seen, self.id).into_iter().min_by(|a, b| a.1.total_cmp(&b.1));
                 let ahead = nearest.map_or("nothing ahead".to_string(), |(car, gap, closing, _)| {
                     let what = car.map_or("its lane's end", |car| world.name(car));
                     format!("nearest in its path {what}, {gap:.1} m ahead closing at {closing:.1} m/s")
@@ -439,9 +441,11 @@ impl Track {
 /// a car whose centre, target lane or body (straddling a lane line) is in the path, whose
 /// body is within `PATH_MARGIN` beside the gt car's, or
 /// that moves sideways towards the gt car faster than `DRIFT_SPEED` from within one and a
-/// half lane widths of it; or the end of a lane of the path, as a stopped car.
-pub fn threatened(world: &World, id: VehicleId) -> bool {
-    in_path(world, id)
+/// half lane widths of it; or the end of a lane of the path, as a stopped car. A car
+/// ahead keeps the harder braking of its command now and `seen`'s (each car's command when
+/// the period's decisions were taken).
+pub fn threatened(world: &World, seen: &[f64], id: VehicleId) -> bool {
+    in_path(world, seen, id)
         .iter()
         .any(|&(_, gap, closing, lead_accel)| time_to_collision(gap, closing, lead_accel) < PHANTOM_TTC)
 }
@@ -467,7 +471,7 @@ pub fn time_to_collision(gap: f64, closing: f64, lead_accel: f64) -> f64 {
 
 /// What is in or entering gt car `id`'s path ahead of it (see `threatened`): each car
 /// (`None`: a lane's end) with its bumper gap (m) and closing speed (m/s).
-fn in_path(world: &World, id: VehicleId) -> Vec<(Option<VehicleId>, f64, f64, f64)> {
+fn in_path(world: &World, seen: &[f64], id: VehicleId) -> Vec<(Option<VehicleId>, f64, f64, f64)> {
     let (road, length) = (world.road(), world.vehicle_params().length);
     let me = world.vehicle(id);
     let (s, d, speed) = (me.state.s, me.state.d, me.state.lane_speed());
@@ -486,7 +490,9 @@ fn in_path(world: &World, id: VehicleId) -> Vec<(Option<VehicleId>, f64, f64, f6
         let body_in = path.iter().any(|&lane| (state.d - road.lane_center(lane)).abs() < reach);
         let beside = (state.d - d).abs() < world.vehicle_params().width + PATH_MARGIN;
         let entering = path.contains(&lane) || path.contains(&other.target_lane) || towards || body_in || beside;
-        let lead_accel = if state.lane_speed() > 0.0 { other.command.accel } else { 0.0 };
+        // Braking as it does now, or as it did when the gt car decided (an IDM car
+        // alternating between -6 and +0.6 m/s^2 is braking half the time).
+        let lead_accel = if state.lane_speed() > 0.0 { other.command.accel.min(seen[j]) } else { 0.0 };
         entering.then(|| (Some(VehicleId(j as u32)), state.s - s - length, speed - state.lane_speed(), lead_accel))
     });
     ends.chain(cars).collect()
@@ -517,8 +523,8 @@ pub fn run(family: &Family, scenario: &Scenario, seed: u64) -> Episode {
         }
         ring.push_back(sim.clone());
         let notes = &mut episode.notes;
-        sim.period(&mut stepper, |world| {
-            tracks.iter_mut().for_each(|track| track.sample(world, notes));
+        sim.period(&mut stepper, |world, seen| {
+            tracks.iter_mut().for_each(|track| track.sample(world, seen, notes));
             merged |= merger.is_some_and(|id| in_through_lane(world, id));
         });
         while judged < sim.crashes.len() {
@@ -610,7 +616,7 @@ fn avoidable(ring: &VecDeque<Sim>, id: VehicleId, time: f64, origin: impl Fn(&Wo
         sim.world.force(id, forced);
         let mut stepper = stepper();
         while sim.world.time() < time + REPLAY_HORIZON - 1e-9 && !sim.crashed_since(seen, id) {
-            sim.period(&mut stepper, |_| {});
+            sim.period(&mut stepper, |_, _| {});
         }
         !sim.crashed_since(seen, id)
     })
@@ -634,7 +640,7 @@ pub fn replay_first_collision(family: &Family, scenario: &Scenario, seed: u64) -
             ring.pop_front();
         }
         ring.push_back(sim.clone());
-        sim.period(&mut stepper, |_| {});
+        sim.period(&mut stepper, |_, _| {});
     }
     let time = sim.crashes.first()?.0;
     let start: &Sim = ring.iter().rev().find(|s| s.world.time() <= time - REPLAY_LEAD + 1e-9).unwrap_or(&ring[0]);
@@ -642,7 +648,7 @@ pub fn replay_first_collision(family: &Family, scenario: &Scenario, seed: u64) -
     for run in [&mut original, &mut replay] {
         let mut stepper = self::stepper();
         while run.world.time() < time + REPLAY_HORIZON - 1e-9 {
-            run.period(&mut stepper, |_| {});
+            run.period(&mut stepper, |_, _| {});
         }
     }
     Some((original.crashes, replay.crashes))

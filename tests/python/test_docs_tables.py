@@ -84,3 +84,5 @@ def test_recomputed_results_compare_to_the_last_bits_a_libm_may_change():
     assert not renderer.same([["merge", "0.5"]], [["merge", "0.51"]])
     assert not renderer.same([["merge", "left"]], [["merge", "keep"]])
     assert not renderer.same({"collision": False}, {"collision": 0})
+    assert renderer.same([["NaN", ""]], [["NaN", ""]])
+    assert not renderer.same([["NaN"]], [["0"]])

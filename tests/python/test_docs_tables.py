@@ -22,9 +22,9 @@ def load_renderer():
 
 @pytest.fixture
 def copy(tmp_path, monkeypatch):
-    """The renderer working on a copy of the repository's docs, results and published.toml."""
+    """The renderer working on a copy of the repository's docs, results, scenarios and published.toml."""
     renderer = load_renderer()
-    for folder in ["docs", "server/paper"]:
+    for folder in ["docs", "server/paper", "scenarios"]:
         shutil.copytree(REPO / folder, tmp_path / folder, ignore=shutil.ignore_patterns("*.png", "src", "tests"))
     for readme in ["README.md", "clients/python/README.md"]:
         (tmp_path / readme).parent.mkdir(parents=True, exist_ok=True)
@@ -86,3 +86,17 @@ def test_recomputed_results_compare_to_the_last_bits_a_libm_may_change():
     assert not renderer.same({"collision": False}, {"collision": 0})
     assert renderer.same([["NaN", ""]], [["NaN", ""]])
     assert not renderer.same([["NaN"]], [["0"]])
+
+
+def test_a_changed_figure_in_an_eval_csv_fails_the_check(copy, capsys):
+    renderer, root = copy
+    source = root / "docs/results/eval-merge-10.csv"
+    text = source.read_text()
+    row = next(line for line in text.splitlines() if line.startswith("merge,gt:normal:nash,"))
+    fields = row.split(",")
+    header = text.splitlines()[0].split(",")
+    k = header.index("t_c")
+    fields[k] = str(float(fields[k]) + 0.2)
+    source.write_text(text.replace(row, ",".join(fields)))
+    assert renderer.render_all(check=True) == 1
+    assert "+| merge | gt:normal:nash | 10 (1 distinct) | 100 % | 0 % | 6.70 |" in capsys.readouterr().out

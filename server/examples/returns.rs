@@ -2,7 +2,9 @@
 //! of docs/rewards.md. Policies: `idle` (the default action), `random` (uniform over the
 //! action space, seeded), `expert` (the built-in AV's `expert_action`, Stackelberg).
 //!
-//! Run: `cargo run --release -p arena-server --example returns [EPISODES]` (default 20).
+//! Run: `cargo run --release -p arena-server --example returns -- [EPISODES] [--csv FILE]`
+//! (default 20 episodes). `--csv` also writes every episode (`scenario,policy,seed,return,
+//! end_reason`), the raw result docs/rewards.md's table is rendered from (scripts/docs-tables).
 
 use arena_protocol::{Action, ActionType, CreateOptions, Game, Info, InfoValue, MetaAction, ResetOptions};
 use arena_server::env::Env;
@@ -47,7 +49,10 @@ fn expert_action(info: &Info) -> Option<u32> {
 }
 
 fn main() {
-    let episodes: u64 = std::env::args().nth(1).and_then(|a| a.parse().ok()).unwrap_or(20);
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let csv_path = args.iter().position(|a| a == "--csv").map(|k| args.get(k + 1).expect("--csv FILE").clone());
+    let episodes: u64 = args.first().filter(|a| *a != "--csv").and_then(|a| a.parse().ok()).unwrap_or(20);
+    let mut csv = String::from("scenario,policy,seed,return,end_reason\n");
     println!("| scenario | policy | min | mean | max | how episodes ended |");
     println!("|---|---|---|---|---|---|");
     for (name, file, text) in BUILTIN_SCENARIOS {
@@ -65,6 +70,10 @@ fn main() {
             let mut rng = ChaCha8Rng::seed_from_u64(7);
             let runs: Vec<(f64, String)> =
                 (0..episodes).map(|seed| episode(&mut env, policy, seed, &mut rng)).collect();
+            let policy_name = format!("{policy:?}").to_lowercase();
+            for (seed, (total, why)) in runs.iter().enumerate() {
+                csv += &format!("{name},{policy_name},{seed},{total},{why}\n");
+            }
             let returns: Vec<f64> = runs.iter().map(|r| r.0).collect();
             let mean = returns.iter().sum::<f64>() / returns.len() as f64;
             let min = returns.iter().copied().fold(f64::INFINITY, f64::min);
@@ -74,11 +83,11 @@ fn main() {
             reasons.dedup();
             let counts: Vec<String> =
                 reasons.iter().map(|why| format!("{} {why}", runs.iter().filter(|r| &r.1 == why).count())).collect();
-            println!(
-                "| {name} | {} | {min:.2} | {mean:.2} | {max:.2} | {} |",
-                format!("{policy:?}").to_lowercase(),
-                counts.join(", ")
-            );
+            println!("| {name} | {policy_name} | {min:.2} | {mean:.2} | {max:.2} | {} |", counts.join(", "));
         }
+    }
+    if let Some(path) = csv_path {
+        std::fs::write(&path, csv).unwrap_or_else(|e| panic!("writing {path}: {e}"));
+        eprintln!("csv: {path}");
     }
 }

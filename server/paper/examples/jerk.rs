@@ -4,7 +4,9 @@
 //! over both scenarios and games. `--off` runs the AV without the jerk bound (before
 //! issue 24).
 //!
-//! `cargo run --release -p arena-paper --example jerk [-- --off]`
+//! `cargo run --release -p arena-paper --example jerk [-- --off] [--csv FILE]`: `--csv` also
+//! writes the per-style summary (`style,commanded_p95,commanded_max,per_step_p95,
+//! per_step_max`), from which docs/paper-reproduction.md's jerk table is rendered.
 
 use arena_paper::{PaperOptions, PaperScenario};
 use arena_sim::analysis::{JerkSummary, commanded_jerk, longitudinal_jerk};
@@ -40,8 +42,11 @@ fn run(scenario: PaperScenario, style: Style, game: Game, options: &PaperOptions
 }
 
 fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let csv_path = args.iter().position(|a| a == "--csv").map(|k| args.get(k + 1).expect("--csv FILE").clone());
+    let mut csv = String::from("style,commanded_p95,commanded_max,per_step_p95,per_step_max\n");
     let mut options = PaperOptions::default();
-    options.params.decision.jerk.enabled = !std::env::args().any(|a| a == "--off");
+    options.params.decision.jerk.enabled = !args.iter().any(|a| a == "--off");
     let jerk = options.params.decision.jerk;
     println!("jerk bound: {} ({} m/s^3)\n", if jerk.enabled { "on" } else { "off" }, jerk.max_jerk);
     println!("| run | commanded p95 | commanded max | per step p95 | per step max | exempt (abort, emergency) |");
@@ -73,5 +78,9 @@ fn main() {
     for (style, commanded, per_step) in by_style {
         let (c, t) = (JerkSummary::of(commanded), JerkSummary::of(per_step));
         println!("| {} | {:.2} | {:.2} | {:.2} | {:.2} |", style.name(), c.p95, c.max, t.p95, t.max);
+        csv += &format!("{},{},{},{},{}\n", style.name(), c.p95, c.max, t.p95, t.max);
+    }
+    if let Some(path) = csv_path {
+        std::fs::write(&path, csv).unwrap_or_else(|e| panic!("writing {path}: {e}"));
     }
 }

@@ -3,7 +3,9 @@
 //! started 5 cm off its lane's centre, driven for 120 s in a `World` at the 10 ms step,
 //! once by IDM (traffic) and once as a learner holding its lane (a continuous action of
 //! zero offset). Prints the largest offset from the centre over the last 20 s.
-//! `cargo run --release -p arena-sim --example lane_keeping`
+//! `cargo run --release -p arena-sim --example lane_keeping [-- --csv FILE]`: `--csv` also
+//! writes every cell (`driver,style,speed,max_offset`), from which the doc's table is
+//! rendered (scripts/docs-tables).
 
 use arena_sim::{AgentCommand, Command, Driver, LaneId, Road, Style, Vehicle, VehicleSetup, World, WorldParams};
 
@@ -28,13 +30,23 @@ fn sway(style: Style, speed: f64, driver: Driver) -> f64 {
 }
 
 fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let csv_path = args.iter().position(|a| a == "--csv").map(|k| args.get(k + 1).expect("--csv FILE").clone());
+    let mut csv = String::from("driver,style,speed,max_offset\n");
     println!("| driver | style | {} |", SPEEDS.map(|v| format!("{v:.0} m/s")).join(" | "));
     println!("|---|---|{}", "---:|".repeat(SPEEDS.len()));
     let learner = Driver::Agent(AgentCommand::Direct(Command { accel: 0.0, preview: 0.0 }));
     for (name, driver) in [("IDM", Driver::Idm), ("learner", learner)] {
         for style in Style::ALL {
-            let cells = SPEEDS.map(|v| format!("{:.4} m", sway(style, v, driver.clone())));
+            let offsets = SPEEDS.map(|v| sway(style, v, driver.clone()));
+            for (speed, offset) in SPEEDS.iter().zip(offsets) {
+                csv += &format!("{name},{},{speed},{offset}\n", style.name());
+            }
+            let cells = offsets.map(|d| format!("{d:.4} m"));
             println!("| {name} | {} | {} |", style.name(), cells.join(" | "));
         }
+    }
+    if let Some(path) = csv_path {
+        std::fs::write(&path, csv).unwrap_or_else(|e| panic!("writing {path}: {e}"));
     }
 }

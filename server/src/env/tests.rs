@@ -567,21 +567,45 @@ fn squeezer_and_av_returns(scenario: &str, reward: &[(&str, f64)]) -> (f64, f64)
     (returns[0], returns[1])
 }
 
+/// Every (reward overrides, squeeze, AV) of a run of `squeezer_and_av_returns`, as CSV
+/// (`scenario,overrides,squeeze,av`, overrides as `key=value;...`).
+#[derive(Default)]
+struct SqueezeCsv(String);
+
+impl SqueezeCsv {
+    fn returns(&mut self, scenario: &str, reward: &[(&str, f64)]) -> (f64, f64) {
+        let (squeezer, av) = squeezer_and_av_returns(scenario, reward);
+        let overrides: Vec<String> = reward.iter().map(|(key, value)| format!("{key}={value}")).collect();
+        self.0 += &format!("{scenario},{},{squeezer},{av}\n", overrides.join(";"));
+        (squeezer, av)
+    }
+
+    /// Writes the rows to $ARENA_SQUEEZE_CSV, if set (docs/rewards.md's table is rendered
+    /// from that file: scripts/docs-tables).
+    fn write(self) {
+        if let Ok(path) = std::env::var("ARENA_SQUEEZE_CSV") {
+            std::fs::write(&path, format!("scenario,overrides,squeeze,av\n{}", self.0)).unwrap();
+        }
+    }
+}
+
 #[test]
 fn passing_cars_side_by_side_returns_less_than_the_av_under_the_default_reward() {
-    // The figures of docs/rewards.md ("Risk", "Goal"): `-- --nocapture` prints them.
-    let (squeezer, av) = squeezer_and_av_returns("overtake-random", &[]);
+    // The figures of docs/rewards.md ("Risk", "Goal"): `-- --nocapture` prints them, and
+    // ARENA_SQUEEZE_CSV=FILE writes them as CSV.
+    let mut csv = SqueezeCsv::default();
+    let (squeezer, av) = csv.returns("overtake-random", &[]);
     eprintln!("default reward (goal bonus 50): squeezing {squeezer:.1}, the AV {av:.1}");
     assert!(squeezer < av, "squeezing beside cars returns {squeezer}, the AV {av}");
     // Without the risk term the squeeze out-earns the AV, as PPO found (docs/rewards.md).
-    let (squeezer, av) = squeezer_and_av_returns("overtake-random", &[("reward.risk_weight", 0.0)]);
+    let (squeezer, av) = csv.returns("overtake-random", &[("reward.risk_weight", 0.0)]);
     eprintln!("risk weight 0: squeezing {squeezer:.1}, the AV {av:.1}");
     assert!(squeezer > av + 50.0, "without risk: squeezing {squeezer}, the AV {av}");
     // The goal bonus is paid to both when both pass; the AV passes in fewer of these
     // episodes than the squeeze (it waits behind the slow car when no gap opens). Under
     // overtake-random's risk weight of 15 no bonus from 0 to 100 hands the squeeze the lead.
     for bonus in [0.0, 100.0] {
-        let (squeezer, av) = squeezer_and_av_returns("overtake-random", &[("reward.goal_bonus", bonus)]);
+        let (squeezer, av) = csv.returns("overtake-random", &[("reward.goal_bonus", bonus)]);
         eprintln!("goal bonus {bonus}: squeezing {squeezer:.1}, the AV {av:.1}");
         assert!(squeezer < av, "goal bonus {bonus}: squeezing {squeezer}, the AV {av}");
     }
@@ -590,13 +614,14 @@ fn passing_cars_side_by_side_returns_less_than_the_av_under_the_default_reward()
     // which is why overtake-random pays risk at 15.
     for bonus in [0.0, 50.0, 100.0] {
         let reward = [("reward.goal_bonus", bonus), ("reward.risk_weight", 10.0)];
-        let (squeezer, av) = squeezer_and_av_returns("overtake-random", &reward);
+        let (squeezer, av) = csv.returns("overtake-random", &reward);
         eprintln!("risk weight 10, goal bonus {bonus}: squeezing {squeezer:.1}, the AV {av:.1}");
         assert!(
             bonus >= 100.0 || squeezer < av,
             "risk weight 10, goal bonus {bonus}: squeezing {squeezer}, the AV {av}"
         );
     }
+    csv.write();
 }
 
 #[test]

@@ -187,7 +187,9 @@ fn learner_commands(world: &World) -> Vec<LearnerCommand> {
 pub struct Avoided {
     /// The driver.
     pub reference: Reference,
-    /// The lead of `LEADS` (s) the replay was for.
+    /// How long before the collision (s) the replay started: the lead of `LEADS` it was
+    /// for, or, if the episode was younger than that, the time from the recorder's first
+    /// copy to the collision.
     pub lead: f64,
     /// When (simulated s) the copy it started from was taken: the latest at or before the
     /// collision's time minus `lead` (up to a control period earlier), or the recorder's
@@ -225,18 +227,23 @@ impl PartyVerdict {
         self.avoided.iter().any(|a| a.reference == reference)
     }
 
-    /// The drivers that avoided it, each once, with the longest lead each did it from:
-    /// `brake@2 idm@3`.
+    /// The drivers that avoided it, each once, with the longest lead each did it from (s):
+    /// `brake@2 idm@3`, `idm@1.16` in an episode's first seconds; `none`.
     pub fn describe(&self) -> String {
         let parts: Vec<String> = Reference::ALL
             .iter()
             .filter_map(|&r| {
                 let lead = self.avoided.iter().filter(|a| a.reference == r).map(|a| a.lead).reduce(f64::max)?;
-                Some(format!("{}@{lead:.0}", r.name()))
+                Some(format!("{}@{}", r.name(), seconds(lead)))
             })
             .collect();
         if parts.is_empty() { "none".into() } else { parts.join(" ") }
     }
+}
+
+/// `lead` as a note gives it: whole seconds bare (`3`), others to 0.01 s (`1.16`).
+fn seconds(lead: f64) -> String {
+    if lead == lead.round() { format!("{lead:.0}") } else { format!("{lead:.2}") }
 }
 
 /// Who could have avoided a collision.
@@ -316,6 +323,7 @@ fn party(recorder: &Recorder, time: f64, id: VehicleId) -> PartyVerdict {
             continue;
         }
         let from = ring[start].world.time();
+        let lead = if from <= time - lead + 1e-9 { lead } else { time - from };
         for reference in Reference::ALL {
             let (avoided, simulated) = replay(ring, start, id, reference, time + HORIZON);
             verdict.replays += 1;

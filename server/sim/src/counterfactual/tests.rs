@@ -1,7 +1,7 @@
 use super::*;
 use crate::dynamics::Command;
 use crate::road::Road;
-use crate::world::{AtFault, Vehicle, VehicleSetup};
+use crate::world::{AtFault, Vehicle, VehicleSetup, WorldParams};
 
 /// A learner's command: accelerate at `accel`, steer to lateral offset `preview`.
 fn direct(accel: f64, preview: f64) -> Driver {
@@ -50,8 +50,6 @@ fn rear_end_world() -> (World, VehicleId, VehicleId) {
     let blind = learner(&mut world, "blind", 0, 105.0, 20.0);
     (world, stopped, blind)
 }
-
-use crate::world::WorldParams;
 
 #[test]
 fn a_rear_end_the_rear_car_could_have_avoided_by_braking_from_2_s() {

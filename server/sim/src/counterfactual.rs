@@ -108,9 +108,9 @@ pub struct Crash {
 /// start of each control period (after the learners' commands of the period are set,
 /// before its first tick), and those commands. It holds `LEADS`' longest lead and two
 /// periods more (32 copies at 10 Hz). Each `record` clones the world (its vehicles, their
-/// gt memories and collision notes, the scene: a few tens of kB and about as many
-/// microseconds for the stress suite's 36-80 cars, next to the milliseconds a period of
-/// their drivers takes) and drops the oldest copy.
+/// gt memories and collision notes, the scene) and drops the oldest copy: 5 us for the
+/// stress suite's adversarial worlds of 37 cars and 11 us for its dense ones of 81
+/// (measured in release), against about 0.5 ms a period of their drivers takes.
 #[derive(Debug, Clone)]
 pub struct Recorder {
     ring: VecDeque<Entry>,

@@ -8,7 +8,9 @@
 //! `--seeds` episodes per family (default 100) from reset seed `--first` (default 0);
 //! `--family` runs only the families named (repeat it; default: all); `--csv` where the
 //! per-episode results go (default stress.csv); `--notes` prints what happened in each
-//! episode (collisions, phantom braking, drift) as it ends.
+//! episode (collisions, phantom braking, drift) as it ends. Every collision with a gt car
+//! or the learner's car in it is judged by counterfactual replays (`arena_sim::verdict`,
+//! issue 46); its note gives the verdict beside the responsibility rule's.
 
 #[path = "../tests/support/highway_gt.rs"]
 #[allow(dead_code)]

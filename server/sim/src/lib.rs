@@ -5,9 +5,11 @@
 //! server (`arena-server`) and the paper harness (`arena-paper`) build on this crate.
 //!
 //! The modules follow the data, one concern each:
-//! `road` -> `dynamics` -> `scene` -> `traffic` / `gt` -> `world` -> `preset` -> `scenario`.
+//! `road` -> `dynamics` -> `scene` -> `traffic` / `gt` -> `world` -> `preset` -> `scenario`;
+//! `counterfactual` replays worlds (was a collision avoidable, and by whom).
 #![warn(missing_docs)]
 
+mod counterfactual;
 mod dynamics;
 mod gt;
 mod preset;
@@ -19,6 +21,10 @@ mod world;
 
 // The surface, by the module that owns each item. What is not here stays inside: the
 // games, the field, the MPC's matrices, the integrator, IDM/MOBIL's internals.
+pub use counterfactual::{
+    Avoidability, Avoided, Crash, HORIZON, LEADS, LearnerCommand, PartyVerdict, REFERENCE_BRAKE, Recorder, Reference,
+    Verdict, verdict,
+};
 pub use dynamics::{
     Command, DriverParams, FULL_PACE_SPEED, LANE_CHANGE_DURATION, LateralPath, MAX_STATE_MAGNITUDE, Style,
     VehicleParams, VehicleState,

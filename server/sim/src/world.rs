@@ -453,6 +453,32 @@ impl World {
         self.forced[id.0 as usize] = Some(forced);
     }
 
+    /// Puts vehicle `id` under another driver from the next control instant on: a learner
+    /// (`Driver::Agent`) or IDM + MOBIL with `gt` `None`, or the game-theoretic AV as `gt`
+    /// says, its memory fresh (whatever memory `driver` carries); the car's style becomes
+    /// `style` (Table I's steering, prepared as `add` prepares it, and Table III's costs).
+    /// Its state, lane, path and target speed stay as they are, and so does its name. An
+    /// evaluation hook, as `force` is (the counterfactual replays of `counterfactual` put a
+    /// car of a collision under each reference driver in turn): no scenario, env or client
+    /// changes who drives a car. A forced car is released.
+    pub fn replace_driver(&mut self, id: VehicleId, driver: Driver, gt: Option<GtSetup>, style: Style) {
+        let driver = match (driver, &gt) {
+            (Driver::Gt(_), Some(_)) => Driver::Gt(Box::default()),
+            (Driver::Gt(_), None) => panic!("a gt driver for '{}' needs its setup", self.name(id)),
+            (_, Some(_)) => panic!("a setup for '{}' but no gt driver", self.name(id)),
+            (driver, None) => driver,
+        };
+        let index = id.0 as usize;
+        let setup = &mut self.setups[index];
+        setup.style = style;
+        setup.driver_params = DriverParams::for_style(style);
+        self.steps[index] =
+            dynamics::VehicleStep::new(&self.scene.vehicle, &setup.driver_params, self.params.physics_dt);
+        self.gt_setups[index] = gt;
+        self.release(id);
+        self.vehicle_mut(id).driver = driver;
+    }
+
     /// Lets vehicle `id`'s driver decide all of its step again.
     pub fn release(&mut self, id: VehicleId) {
         if let Some(forced) = self.forced.get_mut(id.0 as usize) {

@@ -625,3 +625,31 @@ fn the_av_enters_no_gap_the_responsibility_rule_would_call_too_close() {
     assert_eq!(safety.follower_response, crate::world::BLAME_RESPONSE_TIME);
     assert_eq!(safety.lead_brake, crate::world::BLAME_BRAKE);
 }
+
+#[test]
+fn a_replaced_driver_drives_the_car_from_then_on_with_its_style_and_setup() {
+    let (mut world, id) = lone_gt_car();
+    let mut stepper = Stepper::new();
+    stepper.advance(&mut world, 1.0);
+    world.force(id, Forced::Brake(-6.0));
+    world.replace_driver(id, Driver::Idm, None, Style::Aggressive);
+    assert_eq!((world.gt_setup(id), world.forced(id)), (None, None));
+    assert_eq!(world.style(id), Style::Aggressive);
+    assert_eq!(*world.driver_params(id), DriverParams::for_style(Style::Aggressive));
+    let setup = GtSetup { game: Game::Stackelberg, role: Role::Leader, params: GtParams::default() };
+    world.replace_driver(id, Driver::Gt(Box::default()), Some(setup), Style::Conservative);
+    assert_eq!(world.gt_setup(id).map(|s| s.game), Some(Game::Stackelberg));
+    assert_eq!(world.style(id), Style::Conservative);
+    // The same car, the same state: it drives on under its new driver.
+    let before = world.vehicle(id).state;
+    stepper.advance(&mut world, 1.0);
+    assert!(world.vehicle(id).state.s > before.s + 20.0);
+    assert_eq!(world.vehicle(id).status, Status::Driving);
+}
+
+#[test]
+#[should_panic(expected = "needs its setup")]
+fn a_gt_driver_without_a_setup_is_refused() {
+    let (mut world, id) = lone_gt_car();
+    world.replace_driver(id, Driver::Gt(Box::default()), None, Style::Normal);
+}

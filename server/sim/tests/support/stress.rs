@@ -8,8 +8,9 @@
 use std::collections::VecDeque;
 
 use arena_sim::{
-    AgentCommand, AtFault, CUT_IN_WINDOW, Collision, Command, DRIFT_SPEED, Driver, Ending, FULL_PACE_SPEED, Forced,
-    Game, LANE_CHANGE_DURATION, LaneId, LateralPath, Scenario, Status, Stepper, Style, VehicleId, World,
+    AgentCommand, AtFault, Avoidability, CUT_IN_WINDOW, Collision, Command, Crash, DRIFT_SPEED, Driver, Ending,
+    FULL_PACE_SPEED, Forced, Game, LANE_CHANGE_DURATION, LaneId, LateralPath, Recorder, Scenario, Status, Stepper,
+    Style, VehicleId, Verdict, World,
 };
 
 use crate::highway_gt;
@@ -240,6 +241,32 @@ pub struct Episode {
     pub merge: Option<Merge>,
     /// Attacks the scripted learner began.
     pub attacks: u32,
+    /// Collisions with a gt car or the learner's car in them, judged by counterfactual
+    /// replays (`arena_sim::verdict`: each car under every reference driver from 1, 2 and
+    /// 3 s before, avoided if it has no collision until 5 s after)...
+    pub verdicts: u32,
+    /// ... those that only the rear car, only the front car, either, or neither could
+    /// have avoided...
+    pub by_rear: u32,
+    /// See `by_rear`.
+    pub by_front: u32,
+    /// See `by_rear`.
+    pub by_both: u32,
+    /// See `by_rear`.
+    pub by_neither: u32,
+    /// ... those where the responsibility rule (`NEW_RULE`) puts a car at fault that no
+    /// reference driver in its place avoids...
+    pub fault_unavoidable: u32,
+    /// ... and those where it does not put at fault the one car a reference driver in
+    /// whose place avoids it (the other car could not).
+    pub blameless_avoider: u32,
+    /// The replays run for them, and the CPU time (s, this thread's) they took in all, and
+    /// the most one collision's took.
+    pub replays: u32,
+    /// See `replays`.
+    pub verdict_cpu: f64,
+    /// See `replays`.
+    pub verdict_cpu_max: f64,
     /// What happened worth reading, in time order: collisions, the first phantom braking
     /// and drift of each car.
     pub notes: Vec<String>,
@@ -259,12 +286,21 @@ struct Sim {
 }
 
 impl Sim {
-    /// One control period: the script acts, then the world ticks; `sample` reads it after
-    /// the period's first tick, when every driver's decision of the period is applied,
-    /// with each car's command before it (what the period's decisions saw).
-    fn period(&mut self, stepper: &mut Stepper, mut sample: impl FnMut(&World, &[f64])) {
+    /// One control period: the script acts, `recorder` (if any) keeps the world with the
+    /// script's command, then the world ticks; `sample` reads it after the period's first
+    /// tick, when every driver's decision of the period is applied, with each car's
+    /// command before it (what the period's decisions saw).
+    fn period(
+        &mut self,
+        stepper: &mut Stepper,
+        recorder: Option<&mut Recorder>,
+        mut sample: impl FnMut(&World, &[f64]),
+    ) {
         if let Some(script) = &mut self.script {
             script.act(&mut self.world, self.learner);
+        }
+        if let Some(recorder) = recorder {
+            recorder.record(&self.world);
         }
         let decided_on: Vec<f64> = self.world.vehicles().iter().map(|v| v.command.accel).collect();
         for tick in 0..self.world.params().substeps_per_control() {
@@ -517,20 +553,21 @@ pub fn run(family: &Family, scenario: &Scenario, seed: u64) -> Episode {
     let mut sim = Sim { world, learner, script, crashes: Vec::new() };
     let mut episode = Episode { seed, ..Episode::default() };
     let (mut ring, mut stepper, mut judged, mut merged) = (VecDeque::with_capacity(RING), stepper(), 0, false);
+    let mut recorder = Recorder::new(sim.world.params().control_dt);
     while sim.world.time() < SECONDS - 1e-9 {
         if ring.len() == RING {
             ring.pop_front();
         }
         ring.push_back(sim.clone());
         let notes = &mut episode.notes;
-        sim.period(&mut stepper, |world, seen| {
+        sim.period(&mut stepper, Some(&mut recorder), |world, seen| {
             tracks.iter_mut().for_each(|track| track.sample(world, seen, notes));
             merged |= merger.is_some_and(|id| in_through_lane(world, id));
         });
         while judged < sim.crashes.len() {
             let (time, collision) = sim.crashes[judged];
             judged += 1;
-            episode.judge(&sim.world, &ring, &tracks, time, collision);
+            episode.judge(&sim.world, &ring, &recorder, &tracks, time, collision);
         }
     }
     episode.count_endings(&sim.world);
@@ -561,7 +598,15 @@ fn in_through_lane(world: &World, id: VehicleId) -> bool {
 
 impl Episode {
     /// Counts `collision`, found at `time`, and replays it for each gt car at fault.
-    fn judge(&mut self, world: &World, ring: &VecDeque<Sim>, tracks: &[Track], time: f64, collision: Collision) {
+    fn judge(
+        &mut self,
+        world: &World,
+        ring: &VecDeque<Sim>,
+        recorder: &Recorder,
+        tracks: &[Track],
+        time: f64,
+        collision: Collision,
+    ) {
         self.collisions += 1;
         let (rear, front) = (collision.rear, collision.front);
         self.involving_gt += u32::from(is_gt(world, rear) || is_gt(world, front));
@@ -581,12 +626,49 @@ impl Episode {
             Some(setup) => format!("{} (gt {:?} {:?})", world.name(id), world.style(id), setup.game),
             None => world.name(id).to_string(),
         };
+        let learner = world.find(LEARNER);
+        let judged = is_gt(world, rear) || is_gt(world, front) || learner.is_some_and(|l| collision.other(l).is_some());
+        if judged {
+            let began = cpu_seconds();
+            let counterfactual = arena_sim::verdict(recorder, &Crash { time, collision });
+            let spent = cpu_seconds() - began;
+            verdict += &self.count_verdict(&collision, &counterfactual, spent);
+        }
         self.notes.push(format!(
             "t={time:5.2} {} into {}: {:?} at fault{verdict}",
             who(rear),
             who(front),
             (NEW_RULE.fault)(&collision)
         ));
+    }
+
+    /// Counts `counterfactual`, the verdict on `collision` that took `spent` CPU seconds,
+    /// beside the responsibility rule's: what the note says of it.
+    fn count_verdict(&mut self, collision: &Collision, counterfactual: &Verdict, spent: f64) -> String {
+        self.verdicts += 1;
+        self.replays += counterfactual.replays();
+        self.verdict_cpu += spent;
+        self.verdict_cpu_max = self.verdict_cpu_max.max(spent);
+        let class = counterfactual.avoidability();
+        match class {
+            Avoidability::Rear => self.by_rear += 1,
+            Avoidability::Front => self.by_front += 1,
+            Avoidability::Both => self.by_both += 1,
+            Avoidability::Neither => self.by_neither += 1,
+        }
+        let (disagreement, why) = disagreement(collision, counterfactual);
+        match disagreement {
+            Some(Disagreement::FaultUnavoidable) => self.fault_unavoidable += 1,
+            Some(Disagreement::BlamelessAvoider) => self.blameless_avoider += 1,
+            None => {}
+        }
+        format!(
+            " [avoidable by {class:?}: rear {}, front {}; {} replays, {spent:.2} CPU s{}]",
+            counterfactual.rear.describe(),
+            counterfactual.front.describe(),
+            counterfactual.replays(),
+            why.map_or(String::new(), |why| format!("; disagrees with the rule: {why}"))
+        )
     }
 
     fn count_endings(&mut self, world: &World) {
@@ -599,6 +681,52 @@ impl Episode {
             }
         }
     }
+}
+
+/// How a counterfactual verdict disagrees with the responsibility rule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Disagreement {
+    /// A car at fault that no reference driver in its place avoids.
+    FaultUnavoidable,
+    /// A car not at fault that alone could have avoided it (the car at fault could not).
+    BlamelessAvoider,
+}
+
+/// How `verdict` disagrees with `collision`'s responsibility rule, if it does, and why.
+pub fn disagreement(collision: &Collision, verdict: &Verdict) -> (Option<Disagreement>, Option<String>) {
+    let parties = [(collision.rear, &verdict.rear, "rear"), (collision.front, &verdict.front, "front")];
+    for (id, party, name) in parties {
+        if collision.is_at_fault(id) && !party.avoidable() {
+            return (
+                Some(Disagreement::FaultUnavoidable),
+                Some(format!("the {name} car is at fault, unavoidable for it")),
+            );
+        }
+    }
+    let only = match verdict.avoidability() {
+        Avoidability::Rear => Some((collision.rear, "rear")),
+        Avoidability::Front => Some((collision.front, "front")),
+        _ => None,
+    };
+    match only {
+        Some((id, name)) if !collision.is_at_fault(id) => (
+            Some(Disagreement::BlamelessAvoider),
+            Some(format!("the {name} car is not at fault, the only one that could avoid it")),
+        ),
+        _ => (None, None),
+    }
+}
+
+/// CPU time this thread has used (s), from /proc/thread-self/stat (Linux; 10 ms ticks);
+/// 0 elsewhere.
+pub fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/thread-self/stat") else { return 0.0 };
+    // The fields after the command's closing parenthesis: state is the 3rd, utime and
+    // stime the 14th and 15th.
+    let rest = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| fields.get(i).and_then(|f| f.parse::<f64>().ok()).unwrap_or(0.0);
+    (ticks(11) + ticks(12)) / 100.0
 }
 
 /// Whether gt car `id`, at fault in a collision at `time`, avoids it when the episode is
@@ -616,7 +744,7 @@ fn avoidable(ring: &VecDeque<Sim>, id: VehicleId, time: f64, origin: impl Fn(&Wo
         sim.world.force(id, forced);
         let mut stepper = stepper();
         while sim.world.time() < time + REPLAY_HORIZON - 1e-9 && !sim.crashed_since(seen, id) {
-            sim.period(&mut stepper, |_, _| {});
+            sim.period(&mut stepper, None, |_, _| {});
         }
         !sim.crashed_since(seen, id)
     })
@@ -640,7 +768,7 @@ pub fn replay_first_collision(family: &Family, scenario: &Scenario, seed: u64) -
             ring.pop_front();
         }
         ring.push_back(sim.clone());
-        sim.period(&mut stepper, |_, _| {});
+        sim.period(&mut stepper, None, |_, _| {});
     }
     let time = sim.crashes.first()?.0;
     let start: &Sim = ring.iter().rev().find(|s| s.world.time() <= time - REPLAY_LEAD + 1e-9).unwrap_or(&ring[0]);
@@ -648,7 +776,7 @@ pub fn replay_first_collision(family: &Family, scenario: &Scenario, seed: u64) -
     for run in [&mut original, &mut replay] {
         let mut stepper = self::stepper();
         while run.world.time() < time + REPLAY_HORIZON - 1e-9 {
-            run.period(&mut stepper, |_, _| {});
+            run.period(&mut stepper, None, |_, _| {});
         }
     }
     Some((original.crashes, replay.crashes))
@@ -1018,6 +1146,16 @@ impl Summary {
         t.changes += episode.changes;
         t.aborts += episode.aborts;
         t.attacks += episode.attacks;
+        t.verdicts += episode.verdicts;
+        t.by_rear += episode.by_rear;
+        t.by_front += episode.by_front;
+        t.by_both += episode.by_both;
+        t.by_neither += episode.by_neither;
+        t.fault_unavoidable += episode.fault_unavoidable;
+        t.blameless_avoider += episode.blameless_avoider;
+        t.replays += episode.replays;
+        t.verdict_cpu += episode.verdict_cpu;
+        t.verdict_cpu_max = t.verdict_cpu_max.max(episode.verdict_cpu_max);
         self.merges.extend(episode.merge);
     }
 }
@@ -1042,6 +1180,11 @@ pub fn header() -> String {
         "gt changes aborted / begun",
         "merged",
         "attacks",
+        "judged (gt or learner in it)",
+        "avoidable by rear / front / both / neither",
+        "rule vs verdict: at fault, unavoidable / not at fault, only avoider",
+        "replays",
+        "CPU s per judged collision (mean; max)",
     ];
     let rule = vec!["---"; columns.len()];
     format!("| {} |\n|{}|", columns.join(" | "), rule.join("|"))
@@ -1074,6 +1217,15 @@ pub fn row(family: &Family, density: f64, summary: &Summary) -> String {
         format!("{} / {}", t.aborts, t.changes),
         merged,
         attacks,
+        t.verdicts.to_string(),
+        format!("{} / {} / {} / {}", t.by_rear, t.by_front, t.by_both, t.by_neither),
+        format!("{} / {}", t.fault_unavoidable, t.blameless_avoider),
+        t.replays.to_string(),
+        if t.verdicts == 0 {
+            "–".to_string()
+        } else {
+            format!("{:.2}; {:.2}", t.verdict_cpu / f64::from(t.verdicts), t.verdict_cpu_max)
+        },
     ];
     format!("| {} |", cells.join(" | "))
 }
@@ -1123,7 +1275,8 @@ fn lower(value: impl std::fmt::Debug) -> String {
 pub const CSV_HEADER: &str = "family,seed,collisions,involving_gt,gt_at_fault,gt_at_fault_entry_rule,\
      gt_at_fault_avoidable,lane_end,lane_end_gt,off_road,off_road_gt,gt_hard_braking,gt_phantom_braking,gt_drift,\
      gt_max_drift_m,gt_lane_changes,gt_aborted_changes,attacks,merger_style,merger_game,merged,merger_at_fault,\
-     merger_ending";
+     merger_ending,judged,avoidable_by_rear,avoidable_by_front,avoidable_by_both,avoidable_by_neither,\
+     at_fault_unavoidable,not_at_fault_only_avoider,replays,verdict_cpu_s,verdict_cpu_max_s";
 
 /// `episode` of `family` as a line of the CSV (no newline).
 pub fn csv_row(family: &Family, e: &Episode) -> String {
@@ -1139,7 +1292,7 @@ pub fn csv_row(family: &Family, e: &Episode) -> String {
         None => ",,,,".to_string(),
     };
     format!(
-        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.3},{},{},{},{merge}",
+        "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.3},{},{},{},{merge},{},{},{},{},{},{},{},{},{:.3},{:.3}",
         family.name,
         e.seed,
         e.collisions,
@@ -1158,5 +1311,15 @@ pub fn csv_row(family: &Family, e: &Episode) -> String {
         e.changes,
         e.aborts,
         e.attacks,
+        e.verdicts,
+        e.by_rear,
+        e.by_front,
+        e.by_both,
+        e.by_neither,
+        e.fault_unavoidable,
+        e.blameless_avoider,
+        e.replays,
+        e.verdict_cpu,
+        e.verdict_cpu_max,
     )
 }

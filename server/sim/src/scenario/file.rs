@@ -37,6 +37,7 @@ pub(super) struct ScenarioFile {
 pub(super) struct GoalFile {
     pub(super) lanes: Vec<i64>,
     pub(super) ahead_of: Vec<String>,
+    pub(super) fail_at_time_limit: bool,
 }
 
 #[derive(Debug, Clone, Deserialize)]

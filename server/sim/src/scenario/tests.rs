@@ -406,7 +406,7 @@ mod fuzz {
 fn a_goal_names_lanes_of_the_road_and_vehicles_of_the_file() {
     let goal = |table: &str| with("[[vehicle]]\nname = \"a\"", &format!("{table}\n[[vehicle]]\nname = \"a\""));
     let scenario = parse(&goal("[goal]\nlanes = [0]\nahead_of = [\"b\"]")).expect("a good goal");
-    assert_eq!(scenario.goal, Goal { lanes: vec![LaneId(0)], ahead_of: vec!["b".into()] });
+    assert_eq!(scenario.goal, Goal { lanes: vec![LaneId(0)], ahead_of: vec!["b".into()], fail_at_time_limit: false });
     assert_eq!(parse(GOOD).expect("no goal").goal, Goal::default());
     let message = error(&goal("[goal]\nlanes = [2]"));
     assert!(message.contains("`goal.lanes` lists lane 2, but the road's lanes are 0..=1"), "{message}");

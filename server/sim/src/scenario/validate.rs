@@ -119,7 +119,7 @@ impl GoalFile {
                 return Err(invalid("goal.ahead_of", format!("names '{name}' twice; name each vehicle once")));
             }
         }
-        Ok(Goal { lanes, ahead_of: self.ahead_of.clone() })
+        Ok(Goal { lanes, ahead_of: self.ahead_of.clone(), fail_at_time_limit: self.fail_at_time_limit })
     }
 }
 

@@ -577,7 +577,7 @@ impl Env {
         // Out of time short of a goal that must be reached: a failure, paid as a crash.
         let failed = truncated && ended.is_none() && self.episode.goal.fail_at_time_limit && !goal.after;
         let reward = if failed {
-            self.episode.reward.crash_reward(self.max_cycles)
+            self.episode.reward.failure_reward(self.max_cycles)
         } else {
             reward::reward(&self.episode.reward, self.max_cycles, &cost, agent.aim, crashed_now, goal)
         };

@@ -487,10 +487,10 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
             let agent = env.specs().possible_agents[0].clone();
             let max_cycles = env.specs().max_cycles;
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-            let (mut crashed_returns, mut clean_returns) = (Vec::new(), Vec::new());
+            let (mut crashed_returns, mut clean_returns, mut failed_returns) = (Vec::new(), Vec::new(), Vec::new());
             // Random play, then two adversaries: always left, always full throttle.
             for policy in 0..3 {
-                for seed in 0..4 {
+                'episodes: for seed in 0..4 {
                     env.reset(Some(seed), NO_OPTIONS).unwrap();
                     let (mut total, mut crashed) = (0.0, false);
                     loop {
@@ -505,12 +505,18 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
                         let step = env.step(&[(agent.clone(), action)]).unwrap().remove(0);
                         // A time limit reached short of a goal that must be reached
                         // (`[goal] fail_at_time_limit`) ends the episode as a crash does.
-                        let failed = step.terminated && step.info.end_reason() == Some(EndReason::TimeLimit);
-                        let ended_badly = failed
-                            || matches!(
-                                step.info.end_reason(),
-                                Some(EndReason::Collision | EndReason::OffRoad | EndReason::LaneEnd)
-                            );
+                        // It pays `[reward] failure` (the crash reward by default), no less.
+                        if step.terminated && step.info.end_reason() == Some(EndReason::TimeLimit) {
+                            let failure = env.scenario.reward.failure_reward(max_cycles);
+                            assert_eq!(step.reward, failure, "{name}: {:?}", step.info);
+                            assert!(failure >= env.scenario.reward.crash_reward(max_cycles) && failure <= 0.0);
+                            failed_returns.push(total + step.reward);
+                            continue 'episodes;
+                        }
+                        let ended_badly = matches!(
+                            step.info.end_reason(),
+                            Some(EndReason::Collision | EndReason::OffRoad | EndReason::LaneEnd)
+                        );
                         // The defaults: a step in [-risk weight - goal bonus, 1 + goal bonus], a
                         // crash at -((1 + risk weight) x max_cycles + 2 x goal bonus); the weight
                         // and the bonus are the scenario's (overtake's 15 and 50), the bonus 0 on
@@ -536,7 +542,7 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
                 }
             }
             assert!(!crashed_returns.is_empty(), "{name} {action_type:?}: the adversaries crash");
-            let worst_clean = clean_returns.iter().copied().fold(f64::INFINITY, f64::min);
+            let worst_clean = clean_returns.iter().chain(&failed_returns).copied().fold(f64::INFINITY, f64::min);
             assert!(crashed_returns.iter().all(|&r| r < worst_clean), "{name}: {crashed_returns:?} {clean_returns:?}");
         }
     }
@@ -667,7 +673,7 @@ fn running_out_of_time_short_of_the_goal_fails_as_a_crash_in_version_2_only() {
         loop {
             let step = env.step(&actions).unwrap().remove(0);
             if step.terminated || step.truncated {
-                return (step, env.scenario.reward.crash_reward(env.max_cycles));
+                return (step, env.scenario.reward.failure_reward(env.max_cycles));
             }
         }
     };
@@ -676,7 +682,7 @@ fn running_out_of_time_short_of_the_goal_fails_as_a_crash_in_version_2_only() {
         assert_eq!(step.info.end_reason(), Some(EndReason::TimeLimit), "{name}");
         assert_eq!(figure(&step.info, arena_protocol::info::EPISODE_SUCCESS), InfoValue::Bool(false), "{name}");
         assert_eq!((step.terminated, step.truncated), (fails, !fails), "{name}");
-        assert_eq!(step.reward == crash, fails, "{name}: reward {} (crash {crash})", step.reward);
+        assert_eq!(step.reward == crash, fails, "{name}: reward {} (failure {crash})", step.reward);
     }
     // The AV merges: its time limit is a truncation, in version 2 as before.
     let gt = arena_protocol::BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Stackelberg };

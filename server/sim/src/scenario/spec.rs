@@ -152,6 +152,10 @@ pub struct RewardSpec {
     /// ((1 + risk_weight) times the episode length in steps + 2 x goal_bonus), below any
     /// episode without a crash.
     pub crash: Option<f64>,
+    /// The reward of the step that ends an episode as a failure: the time limit reached
+    /// short of a goal that must be reached (`Goal::fail_at_time_limit`); `None`: the crash
+    /// reward. Between the crash reward and 0, so a crash stays the worst.
+    pub failure: Option<f64>,
 }
 
 impl RewardSpec {
@@ -174,6 +178,12 @@ impl RewardSpec {
     /// goal_bonus at any step).
     pub fn crash_reward(&self, max_cycles: u32) -> f64 {
         self.crash.unwrap_or(-((1.0 + self.risk_weight) * f64::from(max_cycles) + 2.0 * self.goal_bonus))
+    }
+
+    /// The reward of the step that fails at the time limit (`failure`), else the crash
+    /// reward.
+    pub fn failure_reward(&self, max_cycles: u32) -> f64 {
+        self.failure.unwrap_or_else(|| self.crash_reward(max_cycles))
     }
 }
 

@@ -52,7 +52,11 @@ pub const BUILTIN_SCENARIOS: [(&str, &str, &str); 12] = [
     ("merge-random-1hz", "merge-random-1hz.toml", include_str!("../../../../scenarios/merge-random-1hz.toml")),
     ("overtake-random-1hz", "overtake-random-1hz.toml", include_str!("../../../../scenarios/overtake-random-1hz.toml")),
     ("merge-random-1hz-v2", "merge-random-1hz-v2.toml", include_str!("../../../../scenarios/merge-random-1hz-v2.toml")),
-    ("overtake-random-1hz-v2", "overtake-random-1hz-v2.toml", include_str!("../../../../scenarios/overtake-random-1hz-v2.toml")),
+    (
+        "overtake-random-1hz-v2",
+        "overtake-random-1hz-v2.toml",
+        include_str!("../../../../scenarios/overtake-random-1hz-v2.toml"),
+    ),
 ];
 
 /// The text's TOML table, or its syntax error.

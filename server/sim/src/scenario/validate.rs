@@ -93,7 +93,10 @@ impl RewardFile {
         // A failure at the time limit is no worse than a crash: a crash stays the worst.
         let crash = spec.crash_reward(max_cycles);
         if let Some(failure) = self.failure.filter(|f| !(f.is_finite() && *f <= 0.0 && *f >= crash)) {
-            return Err(invalid("reward.failure", format!("must be between the crash reward ({crash}) and 0, not {failure}")));
+            return Err(invalid(
+                "reward.failure",
+                format!("must be between the crash reward ({crash}) and 0, not {failure}"),
+            ));
         }
         Ok(spec)
     }

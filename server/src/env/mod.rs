@@ -574,7 +574,7 @@ impl Env {
             before: self.scratch.reached_before[k],
             after: self.episode.goal.reached(world, agent.vehicle),
         };
-        // Out of time short of a goal that must be reached: a failure, paid as a crash.
+        // Out of time short of a goal that must be reached: a failure (by default paid as a crash).
         let failed = truncated && ended.is_none() && self.episode.goal.fail_at_time_limit && !goal.after;
         let reward = if failed {
             self.episode.reward.failure_reward(self.max_cycles)

@@ -197,7 +197,8 @@ pub struct Goal {
     /// Vehicles the learner must end ahead of (greater s).
     pub ahead_of: Vec<String>,
     /// Whether an episode that reaches the time limit short of the goal fails as a crash
-    /// does: terminated (not truncated), with the crash reward. Without it, stopping short
+    /// does: terminated (not truncated), paid `RewardSpec::failure_reward` (by default the
+    /// crash reward). Without it, stopping short
     /// of a lane end and waiting out the clock risks nothing and returns more than a merge
     /// that goes wrong, a local optimum PPO settles in (docs/scenarios.md, "Versions").
     pub fail_at_time_limit: bool,

@@ -19,16 +19,19 @@ from highway_arena._server import _free_port, find_server_binary
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
 
-def test_no_server_at_the_address_raises_within_two_seconds_naming_it_with_advice():
-    started = time.monotonic()
-    with pytest.raises(highway_arena.ServerNotFoundError, match="tcp/127.0.0.1:1 .*launch_server") as raised:
-        highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1")
-    assert time.monotonic() - started < 2.0
-    assert raised.value.code == "NoServer" and isinstance(raised.value, ConnectionError)
-    started = time.monotonic()
-    with pytest.raises(highway_arena.ServerNotFoundError):
-        highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1", connect_timeout=0.3)
-    assert time.monotonic() - started < 1.0, "connect_timeout sets the wait"
+def test_no_server_at_the_address_raises_after_the_connect_timeout_naming_it_with_advice():
+    # Lower bounds only (a loaded machine only adds to a wait): the client waits the connect
+    # timeout it is given, and a longer one waits longer; it never waits the 10 s request
+    # timeout (the upper bound leaves a loaded machine 5 s of slack).
+    def waited(**options):
+        started = time.monotonic()
+        with pytest.raises(highway_arena.ServerNotFoundError, match="tcp/127.0.0.1:1 .*launch_server") as raised:
+            highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1", **options)
+        assert raised.value.code == "NoServer" and isinstance(raised.value, ConnectionError)
+        return time.monotonic() - started
+
+    assert 1.0 <= waited() < 6.0, "the default connect timeout, 1 s"
+    assert 3.0 <= waited(connect_timeout=3.0) < 8.0, "connect_timeout sets the wait"
     with pytest.raises(ValueError, match="connect_timeout must be a positive number"):
         highway_arena.parallel_env("merge", connect="tcp/127.0.0.1:1", connect_timeout=-1)
 
@@ -87,7 +90,8 @@ def test_a_server_that_stops_answering_times_out_within_the_timeout_without_hold
             assert spins > 100
             assert isinstance(outcome.get("error"), TimeoutError), outcome
             assert "no reply" in str(outcome["error"])
-            assert 3 * 0.5 <= outcome["waited"] < 3 * 0.5 + 0.3, outcome["waited"]
+            # Three attempts of 0.5 s, not a fourth (a loaded machine only adds to a wait).
+            assert 3 * 0.5 <= outcome["waited"] < 4 * 0.5, outcome["waited"]
         finally:
             stopped.process.send_signal(signal.SIGCONT)
         env.close()

@@ -271,3 +271,113 @@ def test_batch_and_vector_envs_record_each_env_into_its_own_file(tmp_path):
     for path in paths:
         held = view.summary(path)
         assert (held["episodes"], held["frames"]) == (1, 1 + 3), "begun after the reset: the world then, 3 steps"
+
+
+def blueprint_of(path):
+    """The file's layout: per view, (class, name, origin); and the time panel's timeline."""
+    reader = rr.chunk.RrdReader(str(path))
+    (store,) = reader.blueprints()
+    views, timeline = [], None
+    for chunk in reader.stream(store=store):
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+
+        def first(column):
+            return batch.column(column)[0].as_py()[0] if column in names else None
+
+        if "ViewBlueprint:class_identifier" in names:
+            views.append(
+                (
+                    first("ViewBlueprint:class_identifier"),
+                    first("ViewBlueprint:display_name"),
+                    first("ViewBlueprint:space_origin"),
+                )
+            )
+        if "TimePanelBlueprint:timeline" in names:
+            timeline = first("TimePanelBlueprint:timeline")
+    return views, timeline
+
+
+def test_the_road_view_follows_a_car_at_every_frame_and_each_explained_car_has_its_panel(tmp_path):
+    # Issue 45: a whole-episode recording opened on an empty road (a fixed window where
+    # the first frame was); the panel showed one line of its table.
+    for follow, followed in ((None, "ac_0"), ("ec", "ec")):
+        path = tmp_path / f"merge-ac-{followed}.rrd"
+        env = highway_arena.parallel_env("merge-ac", explain=True, record=path, render_follow=follow)
+        env.reset(seed=5)
+        env.reset(seed=6)  # a second episode follows on the same timeline
+        while env.agents:
+            env.step({"ac_0": IDLE})
+        env.close()
+        frame = table(path)
+        follows = "/world/follow:Transform3D:translation"
+        car = f"/world/vehicles/{followed}"
+        # At every frame of both episodes, the view's frame is on the followed car.
+        times = times_of(frame, f"{car}:x")
+        assert np.array_equal(times_of(frame, follows), times)
+        for time_s in times[:: max(1, len(times) // 25)]:
+            x, y, _ = np.asarray(at(frame, time_s, follows)[0])
+            where = (at(frame, time_s, f"{car}:x")[0], at(frame, time_s, f"{car}:y")[0])
+            assert (x, y) == pytest.approx(where, abs=1e-3)  # a transform is float32
+        views, timeline = blueprint_of(path)
+        assert ("2D", "road", "/world/follow") in views
+        # One text view per explained car: a text view shows one document.
+        assert ("TextDocument", "ec explained", "/explain/ec") in views
+        assert timeline == recording.TIMELINE
+
+
+def test_the_summary_reads_what_the_whole_file_holds(tmp_path, monkeypatch):
+    # The summary reads only the chunks it needs; it must say what a full read of the
+    # file (Rerun's DataFusion reader) says, compacted or not, over several episodes.
+    def full_read(path):
+        static = rr.chunk.RrdReader(str(path)).stream().collect().reader(index=None).to_pandas()
+        frame = table(path)
+        vehicles = sorted(
+            column.split(":")[0].removeprefix("/world/vehicles/")
+            for column in frame.columns
+            if column.startswith("/world/vehicles/") and column.endswith(":x") and column.count("/") == 3
+        )
+        with_vehicles = np.zeros(len(frame), dtype=bool)
+        for name in vehicles:
+            with_vehicles |= present(frame[f"/world/vehicles/{name}:x"]).to_numpy()
+        times = frame.loc[with_vehicles, recording.TIMELINE].dt.total_seconds()
+        lanes = {c.split(":")[0] for c in frame.columns if c.startswith("/world/road/lane_")}
+        return {
+            "format_version": int(static["/meta:format_version"].iloc[0][0]),
+            "protocol": int(static["/meta:protocol"].iloc[0][0]),
+            "scenario": str(static["/meta:scenario"].iloc[0][0]),
+            "agents": list(static["/meta:agents"].iloc[0]),
+            "vehicles": vehicles,
+            "lanes": len([lane for lane in lanes if lane.count("/") == 3]),
+            "episodes": int(present(frame["/episode:index"]).sum()),
+            "frames": int(with_vehicles.sum()),
+            "duration": float(times.max() - times.min()),
+        }
+
+    for compact in (True, False):
+        if not compact:
+            monkeypatch.setattr(recording.Recording, "_rewrite_compacted", lambda self: None)
+        path = tmp_path / f"three-{compact}.rrd"
+        env = highway_arena.parallel_env("merge-ac", explain=True, record=path)
+        for seed in (5, 6, 7):
+            env.reset(seed=seed)
+            for _ in range(15 * seed):
+                if not env.agents:
+                    break
+                env.step({"ac_0": IDLE})
+        env.close()
+        held, read = view.summary(path), full_read(path)
+        assert held.pop("duration") == pytest.approx(read.pop("duration")), compact
+        assert held == read, compact
+        assert held["episodes"] == 3 and held["vehicles"] == ["ac_0", "ec"] and held["lanes"] == 2
+        assert held["frames"] > 3 * 15
+
+
+def test_the_view_command_refuses_what_is_not_a_recording(tmp_path):
+    text = tmp_path / "notes.rrd"
+    text.write_text("not a recording\n")
+    done = subprocess.run(
+        [sys.executable, "-m", "highway_arena.view", str(text), "--summary"], capture_output=True, text=True
+    )
+    assert done.returncode == 2 and "not a Rerun recording" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr

@@ -104,7 +104,14 @@ async fn an_explaining_env_sends_the_avs_decisions_and_the_same_episode() {
     let explaining = CreateOptions { explain: true, ..Default::default() };
     let mut on = harness.env_with(&client, "merge-ac", explaining).await;
     let mut off = harness.env_with(&client, "merge-ac", CreateOptions::default()).await;
-    assert_eq!(on.reset(Some(2), vec![]).await.unwrap(), off.reset(Some(2), vec![]).await.unwrap());
+    let (started, plain) = (on.reset(Some(2), vec![]).await.unwrap(), off.reset(Some(2), vec![]).await.unwrap());
+    assert_eq!(started.agents, plain.agents, "explained or not, the same start");
+    // Explaining, the reset names the vehicles the decisions point to by index.
+    assert!(plain.world.is_none());
+    let world = started.world.expect("explain: the world on reset");
+    let names: Vec<&str> = world.vehicles.iter().map(|v| v.name.as_str()).collect();
+    assert_eq!(names, ["ac_0", "ec"]);
+    let mut played_against_ac = 0;
     for _ in 0..20 {
         let (a, b) = (on.step(meta("ac_0", 1)).await.unwrap(), off.step(meta("ac_0", 1)).await.unwrap());
         assert_eq!(a.steps, b.steps, "explained or not, the same step");
@@ -115,8 +122,13 @@ async fn an_explaining_env_sends_the_avs_decisions_and_the_same_episode() {
         let table = &decision.tables[decision.chosen.expect("a side played") as usize];
         let (accel, sigma) = table.ec_actions[table.row as usize];
         assert_eq!((accel, sigma), (decision.games_accel, decision.sigma), "the chosen cell is the action taken");
-        assert_eq!(table.adjacent, Some(0).filter(|_| table.side == -1), "ac_0, beside on the left");
+        // ac_0 beside on the left is the adjacent car while that side is open to a change
+        // (it closes once ac_0, faster, is level with the slowing EC: the gap rule).
+        assert_eq!(table.side, -1, "the ending lane's only way out is left");
+        assert!(table.adjacent.is_none_or(|ac| ac == 0), "the adjacent car is ac_0: {:?}", table.adjacent);
+        played_against_ac += usize::from(table.adjacent == Some(0));
     }
+    assert!(played_against_ac > 0, "EC never played its game against ac_0");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

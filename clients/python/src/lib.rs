@@ -138,6 +138,7 @@ impl Client {
             inner: Mutex::new(Some(env)),
             world: Mutex::default(),
             explained: Mutex::default(),
+            names: Mutex::default(),
         })
     }
 
@@ -599,6 +600,9 @@ struct Env {
     /// The decisions explained since Python last took them (`take_explanations`); held
     /// as `world` is.
     explained: Mutex<Vec<DecisionExplained>>,
+    /// The vehicles' names of the last world a reset, restore or recording brought, by
+    /// index: what an explanation's indices point to (`explained_dict`).
+    names: Mutex<Vec<String>>,
 }
 
 /// One column of a vehicle frame, by name.
@@ -722,6 +726,13 @@ impl Env {
     ) -> PyResult<T> {
         py.detach(|| lock(&self.inner).as_mut().map(f)).ok_or_else(closed_error)?.map_err(to_py_err)
     }
+
+    /// Keeps the vehicles' names of a world a reply brought (none: the last ones stay).
+    fn keep_names(&self, start: Option<&WorldStart>) {
+        if let Some(start) = start {
+            *lock(&self.names) = start.vehicles.iter().map(|v| v.name.clone()).collect();
+        }
+    }
 }
 
 #[pymethods]
@@ -766,6 +777,7 @@ impl Env {
             parsed.push((key, value));
         }
         let mut reply = self.with(py, move |env| env.reset(seed, parsed))?;
+        self.keep_names(reply.world.as_deref());
         *lock(&self.world) = PendingWorld { start: reply.world.take(), frames: Vec::new() };
         lock(&self.explained).clear();
         let (observations, infos) = (PyDict::new(py), PyDict::new(py));
@@ -789,6 +801,7 @@ impl Env {
     /// world now (as `take_world`'s start), else None.
     fn record<'py>(&self, py: Python<'py>, on: bool) -> PyResult<Option<Bound<'py, PyDict>>> {
         let start = self.with(py, move |env| env.record(on))?;
+        self.keep_names(start.as_ref());
         *lock(&self.world) = PendingWorld::default();
         start.map(|start| start_dict(py, &start)).transpose()
     }
@@ -807,7 +820,8 @@ impl Env {
     /// `explain=True`), in time order: a list of dicts (`explained_dict`).
     fn take_explanations<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let explained = std::mem::take(&mut *lock(&self.explained));
-        let dicts = explained.iter().map(|e| explained_dict(py, e)).collect::<PyResult<Vec<_>>>()?;
+        let names = lock(&self.names).clone();
+        let dicts = explained.iter().map(|e| explained_dict(py, e, &names)).collect::<PyResult<Vec<_>>>()?;
         PyList::new(py, dicts)
     }
 
@@ -849,6 +863,7 @@ impl Env {
     /// it, as `reset` gives them.
     fn restore<'py>(&self, py: Python<'py>, snapshot: Vec<u8>) -> PyResult<Bound<'py, PyTuple>> {
         let mut reply = self.with(py, move |env| env.restore(snapshot))?;
+        self.keep_names(reply.world.as_deref());
         *lock(&self.world) = PendingWorld { start: reply.world.take(), frames: Vec::new() };
         let (observations, infos) = (PyDict::new(py), PyDict::new(py));
         for start in &reply.agents {
@@ -879,19 +894,25 @@ impl Env {
 
 /// A `DecisionExplained` as a dict of the same field names (docs/protocol.md, "The AV
 /// explained"): `game` and `role` by name, paths as lists of (t, x, y, speed), each table
-/// a dict with its costs as flat row-major lists (NaN: skipped).
-fn explained_dict<'py>(py: Python<'py>, e: &DecisionExplained) -> PyResult<Bound<'py, PyDict>> {
+/// a dict with its costs as flat row-major lists (NaN: skipped); beside each vehicle
+/// index, the vehicle's name (`vehicle_name`, `ec_name`, a table's `adjacent_name`) from
+/// `names`, None where it has none.
+fn explained_dict<'py>(py: Python<'py>, e: &DecisionExplained, names: &[String]) -> PyResult<Bound<'py, PyDict>> {
+    let name = |index: u32| names.get(index as usize).map(String::as_str);
     let dict = PyDict::new(py);
     dict.set_item("time", e.time)?;
     dict.set_item("vehicle", e.vehicle)?;
+    dict.set_item("vehicle_name", name(e.vehicle))?;
     dict.set_item("game", e.game.name())?;
     dict.set_item("role", e.role.name())?;
     dict.set_item("ec", e.ec)?;
+    dict.set_item("ec_name", name(e.ec))?;
     let tables = PyList::empty(py);
     for t in &e.tables {
         let table = PyDict::new(py);
         table.set_item("side", t.side)?;
         table.set_item("adjacent", t.adjacent)?;
+        table.set_item("adjacent_name", t.adjacent.and_then(name))?;
         table.set_item("ec_actions", t.ec_actions.clone())?;
         table.set_item("ac_actions", t.ac_actions.clone())?;
         table.set_item("ec_costs", t.ec_costs.clone())?;

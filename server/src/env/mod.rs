@@ -488,6 +488,14 @@ impl Env {
         Some(recording::start(world, &learners))
     }
 
+    /// A reset or restore reply's world: while recording (`world_start`), and with
+    /// `explain` too, where it names the vehicles the explanations point to by index.
+    pub fn reset_world(&self) -> Option<WorldStart> {
+        let world = self.world.as_ref().filter(|_| self.recording || self.explain)?;
+        let learners: Vec<&str> = self.agents.iter().map(|a| a.name.as_str()).collect();
+        Some(recording::start(world, &learners))
+    }
+
     /// The frames the last step took while recording (a step reply's); empty otherwise.
     pub fn take_frames(&mut self) -> Vec<WorldFrame> {
         std::mem::take(&mut self.recorder.frames)

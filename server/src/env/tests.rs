@@ -1142,6 +1142,25 @@ fn recorded_road_geometry_follows_the_road_curves_and_ends() {
     let mut plain = env("merge", CreateOptions::default());
     plain.reset(Some(0), NO_OPTIONS).unwrap();
     assert!(plain.world_start().is_none());
+    assert!(plain.reset_world().is_none());
+}
+
+#[test]
+fn with_explain_a_reset_names_the_vehicles_the_explanations_point_to() {
+    let mut explained = env("merge-ac", CreateOptions { explain: true, ..CreateOptions::default() });
+    explained.reset(Some(5), NO_OPTIONS).unwrap();
+    // Not recording: no frames, but the reset's world, so a client can name the cars.
+    assert!(explained.world_start().is_none());
+    let start = explained.reset_world().expect("explain: the reset names the vehicles");
+    let names: Vec<&str> = start.vehicles.iter().map(|v| v.name.as_str()).collect();
+    assert_eq!(names, ["ac_0", "ec"]);
+    explained.step(&meta_of("ac_0", MetaAction::Idle)).unwrap();
+    let decisions = explained.take_explanations();
+    assert!(!decisions.is_empty());
+    for e in &decisions {
+        assert_eq!(names[e.vehicle as usize], "ec");
+        assert!(e.tables.iter().filter_map(|t| t.adjacent).all(|ac| names[ac as usize] == "ac_0"));
+    }
 }
 
 #[test]

@@ -229,7 +229,9 @@ class ParallelEnv(_ParallelEnv):
     def _new_recording(self, path=None, **where):
         from .recording import Recording  # rerun-sdk is an optional extra
 
-        return Recording(path, meta=recording_meta(self._scenario, self.dt, self.possible_agents), **where)
+        # The road view follows the car the env's frames follow.
+        meta = recording_meta(self._scenario, self.dt, self.possible_agents)
+        return Recording(path, meta=meta, follow=self.render_follow, **where)
 
     @translated
     def start_recording(self, path=None, *, spawn=False, serve=False, web_port=9090, grpc_port=9876):

@@ -14,6 +14,8 @@ episodes follow one another) and ``step`` (env steps since it began):
 - ``world/road/lane_<i>``: the lane as a grey strip along its centre line (``end_s``,
   ``ends_early``, ``speed_limit``), its edges as white lines (``.../edges``);
   ``world/road/lane_<i>/end``: a red bar where a lane ends before the road.
+- ``world/follow``: at every control period, a transform on the followed car (``follow``,
+  else the first learner), the world mirrored; the road view's origin, so it follows it.
 - ``world/vehicles/<name>``: at every control period, its oriented body (a strip of the
   car's width along its axis: a box with rounded corners) coloured by driver, and its
   state (``x``, ``y``, ``heading``, ``s``, ``d``, ``speed``, ``accel``, ``lane``,
@@ -26,14 +28,16 @@ episodes follow one another) and ``step`` (env steps since it began):
   ``plots/cost/<agent>/{safety,comfort,efficiency}`` (every step).
 - With ``explain=True`` (docs/viewing.md, "The AV explained"), at each game-theoretic
   decision: ``world/vehicles/<name>/plan``, the car's own predicted path at the
-  equilibrium it played (a line strip, with ``game``, ``role``, ``sigma``, ``accel``,
-  ``games_accel``, ``exact``, ``safety``, ``fallback``), and
-  ``world/vehicles/<name>/prediction``, the path it predicted for the other player;
-  ``explain/<name>``: the game as a markdown document (players, each side's table
-  summarised row by row, the equilibrium marked) and ``explain/<name>/<left|right>``:
-  each side's full game (``rows``, ``cols``, ``ec_accel``, ``ec_sigma``, ``ac_accel``,
-  ``ec_costs`` and ``ac_costs`` row-major with NaN where the search skipped a cell,
-  ``pruned``, ``row``, ``col``, ``exact``, ``chosen``).
+  equilibrium it played (a line strip, with ``game``, ``role``, ``ec`` (the game's EC
+  by name), ``sigma``, ``accel``, ``games_accel``, ``exact``, ``safety``,
+  ``fallback``), and ``world/vehicles/<name>/prediction``, the path it predicted for
+  the other player; ``explain/<name>``: the game as a markdown document
+  (``explained_markdown``: cars by name, each side's table row by row with AC's best
+  reply and both costs there, and the played row's cost the game minimised, named) and
+  ``explain/<name>/<left|right>``: each side's full game (``ac``, its AC by name, "-"
+  for none; ``rows``, ``cols``, ``ec_accel``, ``ec_sigma``, ``ac_accel``, ``ec_costs``
+  and ``ac_costs`` row-major with NaN where the search skipped a cell, ``pruned``,
+  ``row``, ``col``, ``exact``, ``chosen``).
 - ``events/collisions``: a red point where and when each collision happened, labelled
   with both cars and who was at fault; ``events/ends/<agent>``: where and why an agent's
   episode ended; ``events/log``: both as text.
@@ -55,6 +59,8 @@ from ._core import END_REASONS, PALETTE
 FORMAT = "highway-arena recording"
 FORMAT_VERSION = 2  # 2: the AV's decisions explained (explain=True)
 TIMELINE = "sim_time"
+# The road view's frame: the followed car's position, the world mirrored (Y up).
+FOLLOW = "world/follow"
 STEP_TIMELINE = "step"
 
 # Colours, the protocol's palette (the server's frames paint with it too): learners green
@@ -113,6 +119,91 @@ def _colour(driver: dict, end: int) -> tuple:
     return IDM
 
 
+def vehicle_name(vehicles, index) -> str:
+    """The name of vehicle ``index`` (``vehicles``: the episode's vehicle dicts or names),
+    "-" for none."""
+    if index is None or not 0 <= index < len(vehicles):
+        return "-"
+    vehicle = vehicles[index]
+    return vehicle if isinstance(vehicle, str) else vehicle["name"]
+
+
+def _criterion(e, t) -> tuple:
+    """What the game minimised in the row played: (in words, in short for the table)."""
+    if e["ec"] != e["vehicle"]:
+        return "its best reply to the leader's action", "best reply"
+    # A follower with no leader in play is the EC of its own lane's game, a Nash game.
+    if e["game"] == "stackelberg" and e["role"] == "leader":
+        return "EC's worst case over AC's near-best replies, least over the rows", "worst case"
+    if t["exact"]:
+        return "the Nash equilibrium (AC's best reply)", "equilibrium"
+    return "no pure equilibrium: EC's best row against AC's best replies", "best vs replies"
+
+
+def explained_markdown(e, names=None) -> str:
+    """A decision (the extension's dict) as markdown, vehicles by name (``names``: the
+    episode's vehicle names in index order; by default the dict's own ``vehicle_name``,
+    ``ec_name`` and tables' ``adjacent_name``): the text of a recording's panel. Per side, one line per EC action still in
+    play: AC's best reply to it and both costs there; and, for the row played, the cost
+    the game minimised: a Stackelberg leader's worst case over AC's near-best replies
+    (at least the best reply's cost, so it may read higher than other rows' best-reply
+    costs), a Nash game's equilibrium (AC's best reply: the same cell)."""
+
+    if names is None:
+        named = {e["vehicle"]: e.get("vehicle_name"), e["ec"]: e.get("ec_name")}
+        named.update({t["adjacent"]: t.get("adjacent_name") for t in e["tables"] if t["adjacent"] is not None})
+
+        def name(index):
+            return named.get(index) or "-"
+    else:
+
+        def name(index):
+            return vehicle_name(names, index)
+
+    me = name(e["vehicle"])
+    follows = e["ec"] != e["vehicle"]
+    lines = [
+        f"### {me} at t = {e['time']:.2f} s: {e['game']}, {e['role']}",
+        f"EC (leader) **{name(e['ec'])}**"
+        + (f", {me} answers as its AC" if follows else "")
+        + f"; commanded a = {e['accel']:+.2f} m/s² (games: {e['games_accel']:+.2f}), sigma = {e['sigma']:+d}"
+        + (", **safety override**" if e["safety"] else "")
+        + (", **MPC fallback**" if e["fallback"] else ""),
+    ]
+    for at, t in enumerate(e["tables"]):
+        rows, cols = len(t["ec_actions"]), len(t["ac_actions"])
+        ec = np.asarray(t["ec_costs"], dtype=np.float64).reshape(rows, cols)
+        ac = np.asarray(t["ac_costs"], dtype=np.float64).reshape(rows, cols)
+        chosen = " (chosen)" if e["chosen"] == at else ""
+        skipped = int(np.isnan(ec).sum() + np.isnan(ac).sum())
+        criterion, short = _criterion(e, t)
+        # A follower is the AC: it minimised its own cost.
+        played_header = "played: AC a, J_AC minimised" if follows else "played: AC a, J_EC minimised"
+        who, costs, played_cost = ("AC", ac, ac[t["row"], t["col"]]) if follows else ("EC", ec, t["cost"])
+        lines += [
+            "",
+            f"#### {'left' if t['side'] < 0 else 'right'} side{chosen}: AC {name(t['adjacent'])}, "
+            f"{rows} x {cols}, played ({t['row']}, {t['col']}): {criterion}; J_{who} there = {played_cost:.4g}; "
+            f"{skipped} of {2 * rows * cols} cells skipped, {sum(t['pruned'])} rows pruned",
+            "",
+            f"| EC a | sigma | AC best reply a | J_EC at best reply | J_AC at best reply | {played_header} |",
+            "|---:|---:|---:|---:|---:|:---|",
+        ]
+        for r, (a, sigma) in enumerate(t["ec_actions"]):
+            if t["pruned"][r]:
+                continue
+            known = np.where(np.isnan(ac[r]), np.inf, ac[r])
+            c = int(np.argmin(known))
+            cells = [f"{a:+.2f}", f"{sigma:+d}", f"{t['ac_actions'][c]:+.2f}", f"{ec[r, c]:.4g}", f"{ac[r, c]:.4g}"]
+            if r == t["row"]:
+                played = f"{t['ac_actions'][t['col']]:+.2f}, {costs[r, t['col']]:.4g} ({short})"
+                cells = [f"**{cell}**" for cell in cells + [played]]
+            else:
+                cells.append("")
+            lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 class Recording:
     """A Rerun recording stream fed from an env's replies.
 
@@ -121,10 +212,21 @@ class Recording:
     combination; at least one. ``meta``: what the file says about itself (scenario, step
     and control periods, agents). ``compact``: on ``close``, rewrite the file with its
     chunks merged (Rerun's own optimiser: about 40 % smaller, half a second a minute of
-    highway-gt)."""
+    highway-gt). ``follow``: the vehicle the road view follows (its scenario name, an
+    agent's name for a learner); by default, and in an episode without it, the first
+    learner (else the first vehicle)."""
 
     def __init__(
-        self, path=None, *, spawn=False, serve=False, web_port=9090, grpc_port=9876, meta=None, compact=True
+        self,
+        path=None,
+        *,
+        spawn=False,
+        serve=False,
+        web_port=9090,
+        grpc_port=9876,
+        meta=None,
+        compact=True,
+        follow=None,
     ):
         rr = _rerun()
         if path is None and not spawn and not serve:
@@ -173,8 +275,12 @@ class Recording:
         self._last_position = {}  # vehicle name -> its (x, y) at the last frame written
         self._labelled = set()  # vehicles whose name and width are written
         self._closed = False
-        self._bounds = None  # the road view's first window, set by the first episode
-        self.stream.send_blueprint(self._blueprint())
+        if follow is not None and not isinstance(follow, str):
+            raise TypeError(f"follow must be a vehicle's name (str), not {follow!r}")
+        self._follow = follow
+        self._followed = None  # the vehicle this episode's road view follows
+        self._explained = []  # names of the cars with an explanation panel, in order
+        self._blueprint_sent = False
         # World coordinates have Y to the left of the road's start (up); Rerun's 2D
         # views draw Y down, so the scene is mirrored back once, here.
         for root in ("world", "events"):
@@ -190,27 +296,44 @@ class Recording:
         )
 
     def _blueprint(self):
+        """The layout: the road following a car (``FOLLOW``'s frame: 30 m behind it to
+        90 m ahead, 25 m to either side), the plots beside it, and below them one tab per
+        explained car with its whole decision."""
         rrb = self._rr.blueprint
-        bounds = None
-        if self._bounds is not None:
-            (x0, x1), (y0, y1) = self._bounds
-            bounds = rrb.VisualBounds2D(x_range=[x0, x1], y_range=[y0, y1])
-        return rrb.Blueprint(
-            rrb.Horizontal(
-                rrb.Spatial2DView(
-                    name="road", origin="/", contents=["/world/**", "/events/**"], visual_bounds=bounds
-                ),
-                rrb.Vertical(
-                    rrb.TimeSeriesView(name="speed (m/s)", origin="/plots/speed"),
-                    rrb.TimeSeriesView(name="reward", origin="/plots/reward"),
-                    rrb.TimeSeriesView(name="costs", origin="/plots/cost"),
-                    rrb.TextLogView(name="events", origin="/events/log"),
-                    rrb.TextDocumentView(name="the AV explained", origin="/explain"),
-                ),
-                column_shares=[3, 2],
-            ),
-            rrb.TimePanel(state="expanded", timeline=TIMELINE),
+        road = rrb.Spatial2DView(
+            name="road",
+            origin=f"/{FOLLOW}",
+            contents=["/world/**", "/events/**"],
+            visual_bounds=rrb.VisualBounds2D(x_range=[-30.0, 90.0], y_range=[-25.0, 25.0]),
         )
+        plots = rrb.Vertical(
+            rrb.TimeSeriesView(name="speed (m/s)", origin="/plots/speed"),
+            rrb.TimeSeriesView(name="reward", origin="/plots/reward"),
+            rrb.TimeSeriesView(name="costs", origin="/plots/cost"),
+            rrb.TextLogView(name="events", origin="/events/log"),
+        )
+        top = rrb.Horizontal(road, plots, column_shares=[3, 2])
+        if self._explained:
+            # A text view shows one document: one per car, as tabs.
+            explained = [
+                rrb.TextDocumentView(name=f"{name} explained", origin=f"/explain/{name}", contents="$origin")
+                for name in self._explained
+            ]
+            layout = rrb.Vertical(top, rrb.Tabs(*explained, name="the AV explained"), row_shares=[1, 2])
+        else:
+            layout = top
+        return rrb.Blueprint(
+            layout,
+            rrb.BlueprintPanel(state="collapsed"),
+            rrb.SelectionPanel(state="collapsed"),
+            rrb.TimePanel(state="collapsed", timeline=TIMELINE),
+        )
+
+    def _send_blueprint(self):
+        """Sends the layout, once the recording has data on its timeline (a layout naming
+        a timeline the viewer has not seen yet is refused with 'Timeline not found')."""
+        self._blueprint_sent = True
+        self.stream.send_blueprint(self._blueprint())
 
     def _log(self, path, *archetypes, static=False):
         self.stream.log(path, *archetypes, static=static)
@@ -230,6 +353,7 @@ class Recording:
         self._episodes += 1
         self._vehicles = list(start["vehicles"])
         self._agents = {v["name"]: i for i, v in enumerate(self._vehicles) if v["learner"]}
+        self._followed = self._pick_followed()
         first = _frames(start["frame"])
         # Begun mid-episode, the recording's first frame is the world's time then.
         self._at(self._offset + float(first["time"][0]))
@@ -273,14 +397,8 @@ class Recording:
             )
         self._add_frames(first)
         self._write_frames()
-        if self._bounds is None:
-            # The road view opens on the first learner (else the first vehicle): 120 m
-            # of road around it, drawn mirrored (above); double-click shows it all.
-            focus = next((i for i, v in enumerate(self._vehicles) if v["learner"]), 0)
-            if self._vehicles:
-                x, y = float(first["x"][0, focus]), -float(first["y"][0, focus])
-                self._bounds = ((x - 30.0, x + 90.0), (y - 25.0, y + 25.0))
-                self.stream.send_blueprint(self._blueprint())
+        if not self._blueprint_sent:
+            self._send_blueprint()
         for agent, info in (infos or {}).items():
             self._agent_row(agent, None, 0.0, False, False, info)
 
@@ -324,6 +442,9 @@ class Recording:
             if e["vehicle"] >= len(self._vehicles):
                 continue
             name = self._vehicles[e["vehicle"]]["name"]
+            if name not in self._explained:
+                self._explained.append(name)
+                self._send_blueprint()
             self.stream.set_time(TIMELINE, duration=self._offset + float(e["time"]))
             self.stream.set_time(STEP_TIMELINE, sequence=self._steps)
             follows = e["ec"] != e["vehicle"]
@@ -334,6 +455,7 @@ class Recording:
                 rr.AnyValues(
                     game=e["game"],
                     role=e["role"],
+                    ec=self._name(e["ec"]),
                     sigma=int(e["sigma"]),
                     accel=float(e["accel"]),
                     games_accel=float(e["games_accel"]),
@@ -352,6 +474,7 @@ class Recording:
                 self._log(
                     f"explain/{name}/{side}",
                     rr.AnyValues(
+                        ac=self._name(t["adjacent"]),
                         rows=len(t["ec_actions"]),
                         cols=len(t["ac_actions"]),
                         ec_accel=np.asarray([a for a, _ in t["ec_actions"]], dtype=np.float64),
@@ -369,45 +492,19 @@ class Recording:
         self._at(self._end)
 
     def _name(self, index):
-        return self._vehicles[index]["name"] if index is not None and index < len(self._vehicles) else "-"
+        return vehicle_name(self._vehicles, index)
 
     def _explained_markdown(self, e) -> str:
-        """A decision as markdown: the players, then per side the equilibrium and, per EC
-        action in play, AC's best reply and both costs there (the equilibrium row in bold)."""
-        me = self._name(e["vehicle"])
-        lines = [
-            f"### {me} at t = {e['time']:.2f} s: {e['game']}, {e['role']}",
-            f"EC (leader) **{self._name(e['ec'])}**; commanded a = {e['accel']:+.2f} m/s² "
-            f"(games: {e['games_accel']:+.2f}), sigma = {e['sigma']:+d}"
-            + (", **safety override**" if e["safety"] else "")
-            + (", **MPC fallback**" if e["fallback"] else ""),
-        ]
-        for at, t in enumerate(e["tables"]):
-            rows, cols = len(t["ec_actions"]), len(t["ac_actions"])
-            ec = np.asarray(t["ec_costs"]).reshape(rows, cols)
-            ac = np.asarray(t["ac_costs"]).reshape(rows, cols)
-            chosen = " (chosen)" if e["chosen"] == at else ""
-            skipped = int(np.isnan(ec).sum() + np.isnan(ac).sum())
-            lines += [
-                "",
-                f"#### {'left' if t['side'] < 0 else 'right'} side{chosen}: AC {self._name(t['adjacent'])}, "
-                f"{rows} x {cols}, equilibrium ({t['row']}, {t['col']}) "
-                f"{'exact' if t['exact'] else 'inexact'}, J_EC = {t['cost']:.4g}; "
-                f"{skipped} of {2 * rows * cols} cells skipped, {sum(t['pruned'])} rows pruned",
-                "",
-                "| EC a | sigma | AC reply a | J_EC | J_AC |",
-                "|---:|---:|---:|---:|---:|",
-            ]
-            for r, (a, sigma) in enumerate(t["ec_actions"]):
-                if t["pruned"][r]:
-                    continue
-                known = np.where(np.isnan(ac[r]), np.inf, ac[r])
-                c = t["col"] if r == t["row"] else int(np.argmin(known))
-                cells = [f"{a:+.2f}", f"{sigma:+d}", f"{t['ac_actions'][c]:+.2f}", f"{ec[r, c]:.4g}", f"{ac[r, c]:.4g}"]
-                if r == t["row"]:
-                    cells = [f"**{cell}**" for cell in cells]
-                lines.append("| " + " | ".join(cells) + " |")
-        return "\n".join(lines)
+        return explained_markdown(e, [v["name"] for v in self._vehicles])
+
+    def _pick_followed(self):
+        """The index of the vehicle the road view follows this episode: ``follow``,
+        else the first learner, else the first vehicle (None without vehicles)."""
+        names = [v["name"] for v in self._vehicles]
+        if self._follow in names:
+            return names.index(self._follow)
+        learner = next((i for i, v in enumerate(self._vehicles) if v["learner"]), None)
+        return learner if learner is not None else (0 if names else None)
 
     def _add_frames(self, frames: dict):
         """Keeps frames to write, and where each vehicle was at the last of them."""
@@ -474,6 +571,13 @@ class Recording:
                 self.stream.send_columns(
                     f"plots/speed/{name}", indexes=index, columns=rr.Scalars.columns(scalars=frames["speed"][:, i])
                 )
+        if self._followed is not None and self._followed < frames["x"].shape[1]:
+            # The road view's frame: on the followed car, mirrored as the world is.
+            at = np.stack(
+                [frames["x"][:, self._followed], frames["y"][:, self._followed], np.zeros(len(times))], axis=1
+            )
+            columns = rr.Transform3D.columns(translation=at, scale=np.tile([1.0, -1.0, 1.0], (len(times), 1)))
+            self.stream.send_columns(FOLLOW, indexes=index, columns=columns)
         # Static: a vehicle's name and width do not change within an episode.
         for vehicle in self._vehicles:
             if vehicle["name"] not in self._labelled:
@@ -521,8 +625,9 @@ class Recording:
         stream = rr.RecordingStream("highway-arena", recording_id=self._recording_id)
         stream.set_log_time_enabled(False)
         stream.set_sinks(rr.FileSink(temporary))
-        stream.send_blueprint(self._blueprint())
         rr.send_chunks(store.stream(), recording=stream)
+        # After the data, as while recording: the layout names the timeline.
+        stream.send_blueprint(self._blueprint())
         stream.flush()
         stream.disconnect()
         os.replace(temporary, self.path)

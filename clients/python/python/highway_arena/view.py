@@ -19,51 +19,104 @@ class NotARecording(ValueError):
     """The file is not a highway-arena recording this version can read."""
 
 
+# What a summary reads: the metadata, the episodes, the vehicles and the lanes (not the
+# agents' rows, plots or explanations, most of a file).
+SUMMARY_CONTENT = ["/meta", "/episode", "/world/vehicles/**", "/world/road/**"]
+
+
+def _summary_chunks(path):
+    """The chunks of the file's recording that a summary reads, as rerun-sdk's own
+    reader streams them (its native module: the SDK's Python layer, the viewer's
+    blueprint types and the dataframe engine, which take longer to import than a summary
+    to read, are not needed)."""
+    _rerun_bindings = _bindings()
+    try:
+        stream = _rerun_bindings.RrdReaderInternal(os.fspath(path)).stream(store=None)
+        stream = stream.filter(content=SUMMARY_CONTENT, has_timeline=None, is_static=None, components=None)
+        yield from stream
+    except (ValueError, OSError, RuntimeError) as error:
+        raise NotARecording(f"{path}: not a Rerun recording this rerun-sdk reads ({error})") from error
+
+
+def _bindings():
+    try:
+        import rerun_bindings
+    except ImportError:
+        _rerun()  # says which package to install
+        raise
+    return rerun_bindings
+
+
+def _first(batch, column):
+    """The first value of a static component column (a list), or None."""
+    if column not in batch.schema.names or batch.num_rows == 0:
+        return None
+    return batch.column(column)[0].as_py()
+
+
+def _present(column):
+    """Which rows of a list column hold a value (from its offsets: no pyarrow.compute,
+    whose import brings pandas)."""
+    import numpy as np
+
+    wide = str(column.type).startswith("large_")
+    offsets = np.frombuffer(column.buffers()[1], dtype=np.int64 if wide else np.int32)[column.offset : column.offset + len(column) + 1]
+    return np.diff(offsets) > 0
+
+
+def _times(column):
+    """A duration timeline's values in nanoseconds, from its buffer."""
+    import numpy as np
+
+    return np.frombuffer(column.buffers()[1], dtype=np.int64)[column.offset : column.offset + len(column)]
+
+
 def summary(path) -> dict:
     """What a recording holds: ``format_version``, ``protocol``, ``scenario``,
     ``agents``, ``vehicles`` (every vehicle entity's name), ``lanes``, ``episodes``,
-    ``frames`` (time points with vehicles) and ``duration`` (simulated seconds)."""
-    rr = _rerun()
-    store = rr.chunk.RrdReader(os.fspath(path)).stream().collect()
-    static = store.reader(index=None).to_pandas()
-    if "/meta:format" not in static.columns or static["/meta:format"].iloc[0][0] != FORMAT:
+    ``frames`` (time points with vehicles) and ``duration`` (simulated seconds). Reads
+    only those entities' chunks (``SUMMARY_CONTENT``)."""
+    import numpy as np
+
+    meta = {}
+    vehicles, lanes = set(), set()
+    episodes = 0
+    times = []
+    for chunk in _summary_chunks(path):
+        entity = chunk.entity_path
+        if entity == "/meta" and chunk.is_static:
+            batch = chunk.to_record_batch()
+            meta.update({key: _first(batch, key) for key in batch.schema.names if not key.startswith("rerun.")})
+        elif entity == "/episode":
+            batch = chunk.to_record_batch()
+            if "index" in batch.schema.names:
+                episodes += batch.num_rows - batch.column("index").null_count
+        elif entity.startswith("/world/vehicles/") and entity.count("/") == 3 and not chunk.is_static:
+            batch = chunk.to_record_batch()
+            if "x" in batch.schema.names and TIMELINE in batch.schema.names:
+                vehicles.add(entity.removeprefix("/world/vehicles/"))
+                times.append(_times(batch.column(TIMELINE))[_present(batch.column("x"))])
+        elif entity.startswith("/world/road/lane_") and entity.count("/") == 3:
+            lanes.add(entity)
+    if (meta.get("format") or [None])[0] != FORMAT:
         raise NotARecording(f"{path}: not a {FORMAT} (no /meta entity saying so)")
-    version = int(static["/meta:format_version"].iloc[0][0])
+    version = int(meta["format_version"][0])
     if version > FORMAT_VERSION:
         raise NotARecording(
             f"{path}: a {FORMAT} of format version {version}; this highway_arena reads up to {FORMAT_VERSION}"
         )
-
-    def meta(key, default=None):
-        column = f"/meta:{key}"
-        return static[column].iloc[0] if column in static.columns else default
-
-    table = store.reader(index=TIMELINE).to_pandas()
-    entities = {column.split(":")[0] for column in table.columns if ":" in column}
-    vehicles = sorted(
-        entity.removeprefix("/world/vehicles/")
-        for entity in entities
-        if entity.startswith("/world/vehicles/") and f"{entity}:x" in table.columns
-    )
-    lanes = [entity for entity in entities if entity.startswith("/world/road/lane_") and entity.count("/") == 3]
-    def present(column):
-        return table[column].map(lambda value: value is not None and len(value) > 0)
-
-    with_vehicles = table.index < 0
-    for name in vehicles:
-        with_vehicles = with_vehicles | present(f"/world/vehicles/{name}:x")
-    times = table.loc[with_vehicles, TIMELINE]
-    episodes = table.loc[present("/episode:index"), "/episode:index"] if "/episode:index" in table.columns else []
+    # sim_time is a duration timeline, in nanoseconds.
+    frames = np.unique(np.concatenate(times)) if times else np.zeros(0, dtype=np.int64)
     return {
         "format_version": version,
-        "protocol": int(meta("protocol", [0])[0]),
-        "scenario": str(meta("scenario", [""])[0]),
-        "agents": [str(a) for a in meta("agents", [])],
-        "vehicles": vehicles,
+        "protocol": int((meta.get("protocol") or [0])[0]),
+        "scenario": str((meta.get("scenario") or [""])[0]),
+        "agents": [str(a) for a in meta.get("agents") or []],
+        "vehicles": sorted(vehicles),
         "lanes": len(lanes),
-        "episodes": len(episodes),
-        "frames": int(with_vehicles.sum()),
-        "duration": float((times.max() - times.min()).total_seconds()) if len(times) else 0.0,
+        "episodes": episodes,
+        "frames": len(frames),
+        "duration": float(frames[-1] - frames[0]) / 1e9 if len(frames) else 0.0,
     }
 
 

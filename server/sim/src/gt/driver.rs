@@ -355,16 +355,23 @@ fn side_option(
     Some((option, ac.map(|ac| ac.id)))
 }
 
-/// Whether car `id` on the open road may start a lane change into `lane`: the gap there
+/// Whether car `id` may start a lane change into `lane`. On the open road: the gap there
 /// asks no one to brake harder than `gap_braking`, and the car behind it keeps RSS's
-/// distance with a driver's response time (`follower_response`, `safety`). Out of a lane that ends, the games and `merge` decide alone.
+/// distance with a driver's response time (`follower_response`, `safety`). Out of a lane
+/// that ends, where the car must leave and may wait for no better gap: the gap asks no
+/// one to brake harder than the games' firmest braking (-a_min), what they count on a
+/// yielding car doing; `merge` and the games decide the rest.
 fn gap_open(scene: &Scene, id: VehicleId, lane: LaneId, params: &GtParams) -> bool {
     let car = scene.car(id);
     let safety = &params.safety;
-    let open_road = scene.road.lane_end(car.lane) >= scene.road.length();
-    !(safety.enabled && open_road)
-        || (safety::gap_braking(scene, id, lane, safety) <= safety.gap_braking
-            && safety::follower_keeps_distance(scene, id, lane, safety))
+    if !safety.enabled {
+        return true;
+    }
+    let braking = safety::gap_braking(scene, id, lane, safety);
+    match scene.road.lane_end(car.lane) >= scene.road.length() {
+        true => braking <= safety.gap_braking && safety::follower_keeps_distance(scene, id, lane, safety),
+        false => braking <= -params.decision.game.accel_min,
+    }
 }
 
 /// Whether car `id`, changing lanes on the open road, gives its change up: the gap it goes
@@ -768,6 +775,7 @@ pub fn plan(scene: &Scene, id: VehicleId, setup: &GtSetup, memory: &GtMemory, mp
         lag: params.decision.merge.response_lag,
         accel: decision.accel,
         firm: -params.decision.game.accel_min,
+        ramp_time: params.decision.jerk.ramp(decision.accel, params.decision.game.accel_min).duration(),
     };
     let limited = safety::limit(scene, id, &intent, &params.safety);
     if let Some(limited) = limited {

@@ -113,6 +113,10 @@ pub struct Intent {
     /// The games' hardest braking, -a_min (m/s^2): the layer brakes harder only in an
     /// emergency.
     pub firm: f64,
+    /// How long the command takes from the game's acceleration down to -`firm` at the
+    /// jerk bound (s; 0 without it): braking that starts as a ramp covers, until it is
+    /// full, about what holding the acceleration half that time would.
+    pub ramp_time: f64,
 }
 
 /// Distance (m) covered and speed (m/s) reached in `t` s from `speed` at `accel`, stopping
@@ -194,17 +198,40 @@ pub fn safe_accel(
     (lead_speed, gap, horizon): (f64, f64, f64),
     params: &SafetyParams,
 ) -> f64 {
-    let keeps = |a: f64| {
+    largest(accel, floor, |a| {
         let rear = Braking { speed, accel: a, hold: params.response_time, brake: params.brake };
         least_gap(rear, lead_speed, params.lead_brake, gap, horizon) >= kept(gap, params)
-    };
+    })
+}
+
+/// The largest acceleration in [`floor`, `accel`] that a car at `speed` may hold for
+/// `hold` s and, braking at -`floor` (the games' firmest) after it, still stop `standoff`
+/// short of a car `gap` m ahead at `lead_speed` that holds its braking `lead_brake` (>= 0),
+/// over the next `horizon` s. RSS's distance counts on the AV's emergency braking, so
+/// alone it answers a car ahead that brakes hard now only once the games' firmest no
+/// longer suffices (a spawned queue braking at 6 m/s^2 met at -6.2 two seconds later);
+/// this answers it while the firmest still does. `floor` when none does.
+pub fn anticipating_accel(
+    speed: f64,
+    (accel, floor, hold): (f64, f64, f64),
+    (lead_speed, lead_brake, gap, horizon): (f64, f64, f64, f64),
+    params: &SafetyParams,
+) -> f64 {
+    largest(accel, floor, |a| {
+        let rear = Braking { speed, accel: a, hold, brake: -floor };
+        least_gap(rear, lead_speed, lead_brake, gap, horizon) >= standoff(gap, params)
+    })
+}
+
+/// The largest acceleration in [`floor`, `accel`] that `keeps`; `floor` when none does.
+/// Every instant's gap shrinks as the acceleration grows: bisection finds it.
+fn largest(accel: f64, floor: f64, keeps: impl Fn(f64) -> bool) -> f64 {
     if accel <= floor || keeps(accel) {
         return accel.max(floor);
     }
     if !keeps(floor) {
         return floor;
     }
-    // Every instant's gap shrinks as the acceleration grows: bisect.
     super::bisect(floor, accel, keeps).0
 }
 
@@ -400,9 +427,12 @@ pub fn limit(scene: &Scene, id: VehicleId, intent: &Intent, params: &SafetyParam
     let taken = lanes_taken(scene, me, intent.target);
     let leaving: Vec<LaneId> = taken.iter().copied().filter(|&lane| lane != intent.target).collect();
     let length = scene.vehicle.length;
-    // Farther ahead than this, even a stopped car is beyond RSS's distance.
-    let (_, fastest) = travel(speed, intent.accel.max(0.0), params.response_time);
-    let range = speed * params.response_time + fastest * fastest / (2.0 * params.brake) + params.margin + length;
+    // Farther ahead than this, even a stopped car is beyond RSS's distance and beyond
+    // what the games' firmest braking needs after the early response's hold.
+    let hold = params.response_time + intent.ramp_time / 2.0;
+    let (_, fastest) = travel(speed, intent.accel.max(0.0), hold);
+    let brake = params.brake.min(intent.firm);
+    let range = speed * hold + fastest * fastest / (2.0 * brake) + params.margin + length;
     let mut lowest: Option<SafetyOverride> = None;
     for other in scene.around(me.state.s, range) {
         if other.id == id || other.state.s <= me.state.s {
@@ -429,6 +459,8 @@ pub fn limit(scene: &Scene, id: VehicleId, intent: &Intent, params: &SafetyParam
         // response); harder only if that would not stop it in time.
         let mut accel = safe_accel(speed, intent.accel, -intent.firm, (lead_speed, gap, horizon), params);
         let lead_brake = (-other.accel).max(0.0);
+        let early = (intent.accel, -intent.firm, hold);
+        accel = accel.min(anticipating_accel(speed, early, (lead_speed, lead_brake, gap, horizon), params));
         if let Some(brake) = emergency_brake(speed, intent.firm, (lead_speed, lead_brake, gap, horizon), params) {
             accel = accel.min(-brake);
         }

@@ -643,6 +643,7 @@ fn safety_limit(world: &mut World, ec: VehicleId, target: u32, accel: f64) -> Op
         lag: params.decision.merge.response_lag,
         accel,
         firm: -params.decision.game.accel_min,
+        ramp_time: 0.0,
     };
     super::safety::limit(world.scene(), ec, &intent, &params.safety)
 }
@@ -1147,6 +1148,64 @@ fn emergency_braking_is_let_go_at_once_to_the_games_firmest() {
             let firm = GameParams::default().accel_min;
             assert!(step.command.accel > firm && !step.ramp, "{style:?} from {last}: {:?}", step.command);
             assert_eq!(step.memory.diagnostics.emergency_jumps, 1, "{style:?} from {last}");
+        }
+    }
+}
+
+#[test]
+fn a_car_ahead_that_brakes_hard_is_answered_early_at_the_games_braking() {
+    // A trace of dense traffic: a car 40-60 m ahead braked at 6 m/s^2 from a spawn, with
+    // slower cars beside; the AV held its speed until RSS's distance (which counts on its
+    // own 8 m/s^2) was gone, then braked at -6.2 (here, before: -4.2 to -5.1). Where the
+    // games' firmest, begun early, still stops it short, it never brakes harder, in every
+    // style and game.
+    let firm = -GameParams::default().accel_min;
+    let road = fast_road(3);
+    for style in Style::ALL {
+        for game in Game::ALL {
+            for (speed, gap) in [(20.0, 40.0), (24.0, 55.0), (25.0, 70.0), (30.0, 65.0), (30.0, 90.0)] {
+                let lead = ("lead", 1, 100.0 + 5.0 + gap, speed, Style::Normal, scripted(&road, 1, -6.0));
+                let left = ("left", 0, 110.0, speed - 8.0, Style::Normal, scripted(&road, 0, -1.0));
+                let right = ("right", 2, 104.0, speed - 9.0, Style::Normal, scripted(&road, 2, -1.0));
+                let cars = [("av", 1, 100.0, speed, style, gt(game, Role::Leader)), lead, left, right];
+                let mut world = world_with(road.clone(), &cars);
+                let mut hardest = 0.0f64;
+                run_periods(&mut world, 12.0, |world| hardest = hardest.min(world.vehicle(VehicleId(0)).command.accel));
+                let case = format!("{style:?} {game:?} at {speed} m/s, {gap} m behind");
+                assert!(world.collisions().is_empty(), "{case}: a collision");
+                // Within a hundredth: the last centimetres of a stop at the margin.
+                assert!(hardest >= -firm - 0.01, "{case}: braked at {hardest}");
+            }
+        }
+    }
+}
+
+#[test]
+fn out_of_an_ending_lane_a_change_is_not_started_ahead_of_a_car_that_would_brake_past_the_games() {
+    // A trace of an on-ramp: the merging AV, braking at 4 m/s^2 to 8 m/s 17 m before the
+    // ramp's end, began its change into the gap just behind a faster car, 12 m ahead of a
+    // car at 23 m/s, which braked to 8 m/s to let it in; the AV gave up with its nose over
+    // the line and was hit. Out of an ending lane the AV may wait for no better gap, but
+    // it enters none that asks the car behind to brake harder than the games' firmest;
+    // with that car far enough back (or gone) it goes.
+    let road = merge_road(300.0);
+    let ahead = ("ahead", 1, 286.6, 21.0, Style::Normal, scripted(&road, 1, 0.0));
+    for style in Style::ALL {
+        for game in Game::ALL {
+            for (behind, speed, starts) in
+                [(17.4, 22.7, false), (25.0, 25.0, false), (30.0, 20.0, false), (100.0, 20.0, true)]
+            {
+                for rear in [scripted(&road, 1, 0.0), gt(Game::Nash, Role::Follower)] {
+                    let av = ("av", 2, 283.0, 8.1, style, gt(game, Role::Leader));
+                    let through = ("through", 1, 283.0 - behind, speed, Style::Aggressive, rear);
+                    let mut world = world_with(road.clone(), &[av, ahead.clone(), through]);
+                    world.vehicle_mut(VehicleId(0)).command.accel = -4.0;
+                    let decision = plan_of(&mut world, VehicleId(0)).memory.decision;
+                    let left = decision.lane_change == LaneChange::Left;
+                    let case = format!("{style:?} {game:?}, a car {behind} m behind at {speed} m/s");
+                    assert_eq!(left, starts, "{case}: {decision:?}");
+                }
+            }
         }
     }
 }

@@ -198,7 +198,7 @@ impl Registry {
                 let reply = self.sequenced(client, id, seq, |env| {
                     self.panic_if_injected("reset");
                     let agents = env.reset(seed, &options)?;
-                    Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.world_start().map(Box::new) }))
+                    Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.reset_world().map(Box::new) }))
                 });
                 self.ahead_of_step(&reply, client, id, ahead);
                 reply
@@ -230,7 +230,7 @@ impl Registry {
             }
             RequestBody::Restore { env, seq, snapshot } => self.sequenced(client, env, seq, |env| {
                 let agents = env.restore(&snapshot)?;
-                Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.world_start().map(Box::new) }))
+                Ok(ReplyBody::Reset(ResetReply { seq, agents, world: env.reset_world().map(Box::new) }))
             }),
         }
     }

@@ -11,8 +11,7 @@ The defaults (100 000 steps, 8 envs, entropy bonus 0.01, rewards normalised, see
 200 evaluation episodes) are the benchmark of docs/baselines.md ("Learning curves"), on
 merge-random-1hz-v2, merge-random deciding once a second (docs/scenarios.md, "Decision
 rate") where running out of time in the ending lane fails as a crash does ("Versions"):
-seeds 0, 1 and 2 merge played either way; the table there has them and
-overtake-random-1hz-v2. Launches its own arena-server (or use --connect ENDPOINT for a running one)
+the tables there have every seed measured, played either way, and overtake-random-1hz-v2. Launches its own arena-server (or use --connect ENDPOINT for a running one)
 and prints the training's wall time and CPU seconds (this process and, when it launched
 it, the server).
 

@@ -26,7 +26,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from highway_arena.sb3 import vec_env
 
-SCENARIOS = ["merge-random-1hz", "overtake-random-1hz", "highway-gt"]
+SCENARIOS = ["merge-random-1hz-v2", "overtake-random-1hz-v2", "highway-gt"]
 COLUMNS = [
     "scenario",
     "seed",

@@ -5,19 +5,20 @@ and after training (highway_arena.evaluate, on seeds training never used), playe
 by its most likely action (SB3's `deterministic=True`) and sampled.
 
     pip install -r examples/requirements-ppo.txt     # stable-baselines3 and torch
-    python examples/ppo_highway.py --scenario merge-random-1hz
+    python examples/ppo_highway.py --scenario merge-random-1hz-v2
 
 The defaults (100 000 steps, 8 envs, entropy bonus 0.01, rewards normalised, seed 0,
 200 evaluation episodes) are the benchmark of docs/baselines.md ("Learning curves"), on
-merge-random-1hz, the 1 Hz version of merge-random (docs/scenarios.md, "Decision
-rate"): with seed 0 it merges played either way; the curves there show the other
-seeds and overtake-random-1hz. Launches its own arena-server (or use --connect ENDPOINT for a running one)
+merge-random-1hz-v2, merge-random deciding once a second (docs/scenarios.md, "Decision
+rate") where running out of time in the ending lane fails as a crash does ("Versions"):
+the tables there have every seed measured, played either way, and overtake-random-1hz-v2. Launches its own arena-server (or use --connect ENDPOINT for a running one)
 and prints the training's wall time and CPU seconds (this process and, when it launched
 it, the server).
 
 A step the learner survives earns within [-w - b, 1 + b], with the risk weight w = 10 and
-the goal bonus b (merge-random-1hz: b = 2; overtake-random-1hz: w = 15, b = 5; docs/rewards.md),
-and a crash -((1 + w) x the episode length + 2b), so PPO learns on rewards scaled by the
+the goal bonus b (merge-random-1hz-v2: b = 2; overtake-random-1hz-v2: w = 15, b = 5;
+docs/rewards.md), and a crash, or a failure at the time limit on the -v2 scenarios,
+-((1 + w) x the episode length + 2b), so PPO learns on rewards scaled by the
 running spread of returns (SB3's VecNormalize, rewards only; --no-normalize turns it
 off), with an entropy bonus of 0.01 (without it PPO stops short of merge-random's lane
 end).
@@ -134,7 +135,9 @@ class Progress(BaseCallback):
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--connect", help="endpoint of a running arena-server (default: launch one)")
-    parser.add_argument("--scenario", default="merge-random-1hz", help="scenario to train on (default merge-random-1hz)")
+    parser.add_argument(
+        "--scenario", default="merge-random-1hz-v2", help="scenario to train on (default merge-random-1hz-v2)"
+    )
     parser.add_argument(
         "--timesteps", type=int, default=100_000, help="PPO training steps, in whole rollouts (default 100000: 98304)"
     )

@@ -31,6 +31,9 @@ CHECKPOINT_OF = {
     "overtake": "overtake-random",
     "overtake-random": "overtake-random",
     "highway-gt": "highway-gt",
+    # The 1 Hz tasks of the README's training command (docs/scenarios.md, "Versions").
+    "merge-random-1hz-v2": "merge-random-1hz-v2",
+    "overtake-random-1hz-v2": "overtake-random-1hz-v2",
 }
 
 # Every style and game of the AV (the protocol's names), Stackelberg's first as the league

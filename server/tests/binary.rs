@@ -56,9 +56,11 @@ async fn serves_then_stops_on_sigterm() {
                 "merge-duo",
                 "merge-random",
                 "merge-random-1hz",
+                "merge-random-1hz-v2",
                 "overtake",
                 "overtake-random",
                 "overtake-random-1hz",
+                "overtake-random-1hz-v2",
             ];
             assert_eq!(info.scenarios, expected);
         }

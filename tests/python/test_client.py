@@ -98,7 +98,7 @@ def test_a_server_that_stops_answering_times_out_within_the_timeout_without_hold
 
 
 def test_unknown_scenario_names_the_ones_there_are():
-    with pytest.raises(highway_arena.ScenarioError, match="merge, merge-ac, merge-duo, merge-random, merge-random-1hz, overtake"):
+    with pytest.raises(highway_arena.ScenarioError, match="merge, merge-ac, merge-duo, merge-random, merge-random-1hz, merge-random-1hz-v2, overtake"):
         highway_arena.parallel_env("nowhere")
 
 

@@ -582,7 +582,13 @@ impl Env {
             before: self.scratch.reached_before[k],
             after: self.episode.goal.reached(world, agent.vehicle),
         };
-        let reward = reward::reward(&self.episode.reward, self.max_cycles, &cost, agent.aim, crashed_now, goal);
+        // Out of time short of a goal that must be reached: a failure (by default paid as a crash).
+        let failed = truncated && ended.is_none() && self.episode.goal.fail_at_time_limit && !goal.after;
+        let reward = if failed {
+            self.episode.reward.failure_reward(self.max_cycles)
+        } else {
+            reward::reward(&self.episode.reward, self.max_cycles, &cost, agent.aim, crashed_now, goal)
+        };
         let stats = agent.stats.get_or_insert_with(|| episode::EpisodeStats::start(world, agent.vehicle, periods));
         stats.record(world, agent.vehicle, self.scratch.started, reward, &cost);
         stats.record_accels(&self.scratch.accels[k], world.params().control_dt);
@@ -599,8 +605,8 @@ impl Env {
             agent: self.agents[i].name.clone(),
             observation,
             reward,
-            terminated: ended.is_some(),
-            truncated: truncated && ended.is_none(),
+            terminated: ended.is_some() || failed,
+            truncated: truncated && ended.is_none() && !failed,
             info,
         }
     }

@@ -487,10 +487,10 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
             let agent = env.specs().possible_agents[0].clone();
             let max_cycles = env.specs().max_cycles;
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-            let (mut crashed_returns, mut clean_returns) = (Vec::new(), Vec::new());
+            let (mut crashed_returns, mut clean_returns, mut failed_returns) = (Vec::new(), Vec::new(), Vec::new());
             // Random play, then two adversaries: always left, always full throttle.
             for policy in 0..3 {
-                for seed in 0..4 {
+                'episodes: for seed in 0..4 {
                     env.reset(Some(seed), NO_OPTIONS).unwrap();
                     let (mut total, mut crashed) = (0.0, false);
                     loop {
@@ -503,6 +503,16 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
                             (_, _) => Action::Continuous([1.0, 0.0]),
                         };
                         let step = env.step(&[(agent.clone(), action)]).unwrap().remove(0);
+                        // A time limit reached short of a goal that must be reached
+                        // (`[goal] fail_at_time_limit`) ends the episode as a crash does.
+                        // It pays `[reward] failure` (the crash reward by default), no less.
+                        if step.terminated && step.info.end_reason() == Some(EndReason::TimeLimit) {
+                            let failure = env.scenario.reward.failure_reward(max_cycles);
+                            assert_eq!(step.reward, failure, "{name}: {:?}", step.info);
+                            assert!(failure >= env.scenario.reward.crash_reward(max_cycles) && failure <= 0.0);
+                            failed_returns.push(total + step.reward);
+                            continue 'episodes;
+                        }
                         let ended_badly = matches!(
                             step.info.end_reason(),
                             Some(EndReason::Collision | EndReason::OffRoad | EndReason::LaneEnd)
@@ -532,7 +542,7 @@ fn rewards_are_bounded_and_a_crash_is_worse_than_any_step_or_episode_without_one
                 }
             }
             assert!(!crashed_returns.is_empty(), "{name} {action_type:?}: the adversaries crash");
-            let worst_clean = clean_returns.iter().copied().fold(f64::INFINITY, f64::min);
+            let worst_clean = clean_returns.iter().chain(&failed_returns).copied().fold(f64::INFINITY, f64::min);
             assert!(crashed_returns.iter().all(|&r| r < worst_clean), "{name}: {crashed_returns:?} {clean_returns:?}");
         }
     }
@@ -643,6 +653,12 @@ fn passing_cars_side_by_side_returns_less_than_the_av_deciding_once_a_second() {
     let (squeezer, av) = squeezer_and_av_returns("merge-random-1hz", &[]);
     eprintln!("merge-random-1hz (goal bonus 2): cutting in {squeezer:.1}, the AV {av:.1}");
     assert!(squeezer < av, "merge-random-1hz: cutting in {squeezer}, the AV {av}");
+    // Version 2 (a time limit short of the goal fails as a crash does) keeps the ranking.
+    for scenario in ["merge-random-1hz-v2", "overtake-random-1hz-v2"] {
+        let (squeezer, av) = squeezer_and_av_returns(scenario, &[]);
+        eprintln!("{scenario}: squeezing {squeezer:.1}, the AV {av:.1}");
+        assert!(squeezer < av, "{scenario}: squeezing {squeezer}, the AV {av}");
+    }
 }
 
 #[test]
@@ -670,6 +686,34 @@ fn the_goal_bonus_is_paid_once_on_the_step_the_goal_is_reached() {
     assert!((paid[0].1 - 30.0).abs() < 1e-9, "{paid:?}");
     // Paid on the step the car enters lane 0, not at the start or the end.
     assert!(paid[0].0 > 0 && paid[0].0 + 1 < with.len(), "{paid:?}");
+}
+
+#[test]
+fn running_out_of_time_short_of_the_goal_fails_as_a_crash_in_version_2_only() {
+    // `slower` on every step stops short of merge's lane end and waits out the clock.
+    let last_step = |name: &str, policy: Option<arena_protocol::BuiltinPolicy>| {
+        let mut env = env(name, CreateOptions { policy, ..CreateOptions::default() });
+        env.reset(Some(3), NO_OPTIONS).unwrap();
+        let actions = if env.policy.is_some() { Vec::new() } else { meta_of("ec_0", MetaAction::Slower) };
+        loop {
+            let step = env.step(&actions).unwrap().remove(0);
+            if step.terminated || step.truncated {
+                return (step, env.scenario.reward.failure_reward(env.max_cycles));
+            }
+        }
+    };
+    for (name, fails) in [("merge-random-1hz", false), ("merge-random-1hz-v2", true)] {
+        let (step, crash) = last_step(name, None);
+        assert_eq!(step.info.end_reason(), Some(EndReason::TimeLimit), "{name}");
+        assert_eq!(figure(&step.info, arena_protocol::info::EPISODE_SUCCESS), InfoValue::Bool(false), "{name}");
+        assert_eq!((step.terminated, step.truncated), (fails, !fails), "{name}");
+        assert_eq!(step.reward == crash, fails, "{name}: reward {} (failure {crash})", step.reward);
+    }
+    // The AV merges: its time limit is a truncation, in version 2 as before.
+    let gt = arena_protocol::BuiltinPolicy::Gt { style: None, game: arena_protocol::Game::Stackelberg };
+    let (step, crash) = last_step("merge-random-1hz-v2", Some(gt));
+    assert_eq!(figure(&step.info, arena_protocol::info::EPISODE_SUCCESS), InfoValue::Bool(true));
+    assert!(step.truncated && !step.terminated && step.reward > crash, "{step:?}");
 }
 
 #[test]

@@ -37,6 +37,7 @@ pub(super) struct ScenarioFile {
 pub(super) struct GoalFile {
     pub(super) lanes: Vec<i64>,
     pub(super) ahead_of: Vec<String>,
+    pub(super) fail_at_time_limit: bool,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -46,6 +47,7 @@ pub(super) struct RewardFile {
     pub(super) risk_weight: f64,
     pub(super) goal_bonus: f64,
     pub(super) crash: Option<f64>,
+    pub(super) failure: Option<f64>,
 }
 
 impl Default for RewardFile {
@@ -55,6 +57,7 @@ impl Default for RewardFile {
             risk_weight: RewardSpec::DEFAULT_RISK_WEIGHT,
             goal_bonus: RewardSpec::DEFAULT_GOAL_BONUS,
             crash: None,
+            failure: None,
         }
     }
 }

@@ -40,7 +40,7 @@ use overrides::{OPPONENTS, apply_opponents, apply_override, nesting};
 
 /// The scenario files shipped in `scenarios/`, compiled in so the server needs no
 /// files beside it: (name, file name, text).
-pub const BUILTIN_SCENARIOS: [(&str, &str, &str); 10] = [
+pub const BUILTIN_SCENARIOS: [(&str, &str, &str); 12] = [
     ("merge", "merge.toml", include_str!("../../../../scenarios/merge.toml")),
     ("overtake", "overtake.toml", include_str!("../../../../scenarios/overtake.toml")),
     ("highway", "highway.toml", include_str!("../../../../scenarios/highway.toml")),
@@ -51,6 +51,12 @@ pub const BUILTIN_SCENARIOS: [(&str, &str, &str); 10] = [
     ("overtake-random", "overtake-random.toml", include_str!("../../../../scenarios/overtake-random.toml")),
     ("merge-random-1hz", "merge-random-1hz.toml", include_str!("../../../../scenarios/merge-random-1hz.toml")),
     ("overtake-random-1hz", "overtake-random-1hz.toml", include_str!("../../../../scenarios/overtake-random-1hz.toml")),
+    ("merge-random-1hz-v2", "merge-random-1hz-v2.toml", include_str!("../../../../scenarios/merge-random-1hz-v2.toml")),
+    (
+        "overtake-random-1hz-v2",
+        "overtake-random-1hz-v2.toml",
+        include_str!("../../../../scenarios/overtake-random-1hz-v2.toml"),
+    ),
 ];
 
 /// The text's TOML table, or its syntax error.

@@ -152,6 +152,10 @@ pub struct RewardSpec {
     /// ((1 + risk_weight) times the episode length in steps + 2 x goal_bonus), below any
     /// episode without a crash.
     pub crash: Option<f64>,
+    /// The reward of the step that ends an episode as a failure: the time limit reached
+    /// short of a goal that must be reached (`Goal::fail_at_time_limit`); `None`: the crash
+    /// reward. Between the crash reward and 0, so a crash stays the worst.
+    pub failure: Option<f64>,
 }
 
 impl RewardSpec {
@@ -175,6 +179,12 @@ impl RewardSpec {
     pub fn crash_reward(&self, max_cycles: u32) -> f64 {
         self.crash.unwrap_or(-((1.0 + self.risk_weight) * f64::from(max_cycles) + 2.0 * self.goal_bonus))
     }
+
+    /// The reward of the step that fails at the time limit (`failure`), else the crash
+    /// reward.
+    pub fn failure_reward(&self, max_cycles: u32) -> f64 {
+        self.failure.unwrap_or_else(|| self.crash_reward(max_cycles))
+    }
 }
 
 /// What a learner's episode must achieve to count as a success (`arena eval`, the
@@ -186,6 +196,12 @@ pub struct Goal {
     pub lanes: Vec<LaneId>,
     /// Vehicles the learner must end ahead of (greater s).
     pub ahead_of: Vec<String>,
+    /// Whether an episode that reaches the time limit short of the goal fails as a crash
+    /// does: terminated (not truncated), paid `RewardSpec::failure_reward` (by default the
+    /// crash reward). Without it, stopping short
+    /// of a lane end and waiting out the clock risks nothing and returns more than a merge
+    /// that goes wrong, a local optimum PPO settles in (docs/scenarios.md, "Versions").
+    pub fail_at_time_limit: bool,
 }
 
 impl Goal {

@@ -366,6 +366,13 @@ fn bad_vary_and_reward_tables_are_refused_with_the_key() {
     assert!(error(&bad_scale).contains("reward.cost_scale"));
     let bad_crash = format!("{GOOD}\n[reward]\ncrash = 3.0\n");
     assert!(error(&bad_crash).contains("reward.crash"));
+    // A failure at the time limit lies between the crash reward and 0.
+    for failure in ["1.0", "-1e9"] {
+        let bad_failure = format!("{GOOD}\n[reward]\ncrash = -100.0\nfailure = {failure}\n");
+        assert!(error(&bad_failure).contains("reward.failure"), "{}", error(&bad_failure));
+    }
+    let good = parse(&format!("{GOOD}\n[reward]\ncrash = -100.0\nfailure = -20.0\n")).expect("a good failure");
+    assert_eq!((good.reward.failure_reward(10), good.reward.crash_reward(10)), (-20.0, -100.0));
 }
 
 mod fuzz {
@@ -406,7 +413,7 @@ mod fuzz {
 fn a_goal_names_lanes_of_the_road_and_vehicles_of_the_file() {
     let goal = |table: &str| with("[[vehicle]]\nname = \"a\"", &format!("{table}\n[[vehicle]]\nname = \"a\""));
     let scenario = parse(&goal("[goal]\nlanes = [0]\nahead_of = [\"b\"]")).expect("a good goal");
-    assert_eq!(scenario.goal, Goal { lanes: vec![LaneId(0)], ahead_of: vec!["b".into()] });
+    assert_eq!(scenario.goal, Goal { lanes: vec![LaneId(0)], ahead_of: vec!["b".into()], fail_at_time_limit: false });
     assert_eq!(parse(GOOD).expect("no goal").goal, Goal::default());
     let message = error(&goal("[goal]\nlanes = [2]"));
     assert!(message.contains("`goal.lanes` lists lane 2, but the road's lanes are 0..=1"), "{message}");

@@ -67,7 +67,7 @@ impl ScenarioFile {
 }
 
 impl RewardFile {
-    fn validate(&self, _max_cycles: u32, goal: &Goal) -> Result<RewardSpec, ScenarioErrorKind> {
+    fn validate(&self, max_cycles: u32, goal: &Goal) -> Result<RewardSpec, ScenarioErrorKind> {
         let invalid = |key: &str, message: String| ScenarioErrorKind::Invalid { key: key.to_string(), message };
         if !(self.cost_scale.is_finite() && self.cost_scale > 0.0) {
             return Err(invalid("reward.cost_scale", format!("must be a positive number, not {}", self.cost_scale)));
@@ -81,14 +81,24 @@ impl RewardFile {
         if !(self.goal_bonus.is_finite() && self.goal_bonus >= 0.0) {
             return Err(invalid("reward.goal_bonus", format!("must be 0 or more, not {}", self.goal_bonus)));
         }
-        Ok(RewardSpec {
+        let spec = RewardSpec {
             cost_scale: self.cost_scale,
             risk_weight: self.risk_weight,
             // A scenario without a goal (the highways) has nothing to pay it for, and its
             // crash reward stays -(1 + risk_weight) x max_cycles.
             goal_bonus: if goal.lanes.is_empty() && goal.ahead_of.is_empty() { 0.0 } else { self.goal_bonus },
             crash: self.crash,
-        })
+            failure: self.failure,
+        };
+        // A failure at the time limit is no worse than a crash: a crash stays the worst.
+        let crash = spec.crash_reward(max_cycles);
+        if let Some(failure) = self.failure.filter(|f| !(f.is_finite() && *f <= 0.0 && *f >= crash)) {
+            return Err(invalid(
+                "reward.failure",
+                format!("must be between the crash reward ({crash}) and 0, not {failure}"),
+            ));
+        }
+        Ok(spec)
     }
 }
 
@@ -119,7 +129,7 @@ impl GoalFile {
                 return Err(invalid("goal.ahead_of", format!("names '{name}' twice; name each vehicle once")));
             }
         }
-        Ok(Goal { lanes, ahead_of: self.ahead_of.clone() })
+        Ok(Goal { lanes, ahead_of: self.ahead_of.clone(), fail_at_time_limit: self.fail_at_time_limit })
     }
 }
 

@@ -55,8 +55,9 @@ pub struct SafetyParams {
     /// the car behind the AV) for the AV to start a lane change into it on the open road
     /// (`gap_braking`). 2: MOBIL's b_safe, the braking a lane change may impose on the new
     /// follower (`IdmParams::max_imposed_braking`), so the AV asks no more than the
-    /// traffic does. A change under way is given up when its gap asks more than the games'
-    /// firmest braking (-a_min) and the lane it leaves asks less.
+    /// traffic does. Out of an ending lane the bound is the games' firmest braking (-a_min)
+    /// instead (`driver::gap_open`). A change under way is given up when its gap asks more
+    /// than -a_min and the lane it leaves asks less.
     pub gap_braking: f64,
     /// RSS's response time (s) of the car behind the gap the AV starts a lane change into
     /// on the open road: the AV enters only where that car, holding its command (if it
